@@ -1,1 +1,59 @@
-fn main() {}
+//! Renderer throughput. Run: `cargo bench --bench render`.
+//!
+//! `float_256`: the float reference on a 256^3 volume (aneurism when the data folder is there,
+//! else the 256^3 sphere phantom), 256x256, one sample per voxel distance, no ERT, one thread
+//! (the per-core figure). divan reports samples per second as its item throughput.
+
+use std::sync::OnceLock;
+
+use divan::counter::ItemsCount;
+use vizsim::camera::{Camera, Projection, View};
+use vizsim::render::float::FloatRenderer;
+use vizsim::render::RenderSettings;
+use vizsim::transfer;
+use vizsim::volume::{dataset, Volume};
+
+fn main() {
+    divan::main();
+}
+
+fn volume_256() -> &'static Volume {
+    static VOLUME: OnceLock<Volume> = OnceLock::new();
+    VOLUME.get_or_init(|| {
+        let dir = dataset::data_dir(None)
+            .or_else(|| Some(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data").into()));
+        dataset::load("aneurism", dir.as_deref())
+            .unwrap_or_else(|_| dataset::load("phantom:sphere:256", None).expect("phantom"))
+    })
+}
+
+#[divan::bench(sample_count = 5)]
+fn float_256(bencher: divan::Bencher) {
+    let volume = volume_256();
+    let tf = transfer::resolve("class", &volume.name).unwrap();
+    let settings = RenderSettings {
+        ert_threshold: None,
+        ..Default::default()
+    };
+    let renderer = FloatRenderer::new(volume, &tf, &settings).unwrap();
+    let camera = Camera::for_volume(
+        glam::Vec3::from(volume.extent()),
+        View::Orbit { k: 5, n: 72 },
+        Projection::Ortho,
+        256,
+        256,
+    )
+    .unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let samples = pool.install(|| renderer.render(&camera)).stats().samples;
+    println!(
+        "float_256: {} on 1 thread, {samples} samples per frame",
+        volume.name
+    );
+    bencher
+        .counter(ItemsCount::new(samples))
+        .bench(|| pool.install(|| renderer.render(&camera)));
+}

@@ -1,7 +1,20 @@
 //! vizsim: a cycle-accurate simulator of hardware volume ray casting architectures.
 //! See docs/ARCHITECTURE.md for the map of the crate.
 
+// Per-axis loops over [_; 3] index several arrays at once; iterator chains would hide that.
+#![allow(clippy::needless_range_loop)]
+
+pub mod camera;
+pub mod compare;
+pub mod config;
 pub mod error;
+pub mod fixed;
+pub mod functional;
+pub mod occupancy;
+pub mod output;
+pub mod render;
+pub mod skip;
+pub mod transfer;
 pub mod volume;
 
 pub use error::{Error, Result};

@@ -1,1 +1,657 @@
-fn main() {}
+//! The `vizsim` command line. Library errors carry what and where; here they get context and
+//! become a message on stderr with a non-zero exit status.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::{Args, Parser, Subcommand};
+use vizsim::camera::{parse_image_size, Camera, Projection, View};
+use vizsim::config::HardwareConfig;
+use vizsim::functional::renderer::{FixedRenderer, Leaping};
+use vizsim::render::float::FloatRenderer;
+use vizsim::render::{Frame, FrameStats, RenderSettings};
+use vizsim::transfer;
+use vizsim::volume::{dataset, Volume};
+
+#[derive(Parser)]
+#[command(
+    name = "vizsim",
+    version,
+    about = "Cycle-accurate simulator of hardware volume ray casting architectures"
+)]
+struct Cli {
+    /// Worker threads (default: all cores). Results are identical for any count.
+    #[arg(long, global = true)]
+    threads: Option<usize>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render one frame with the float reference ray caster.
+    Render(RenderArgs),
+    /// Print a dataset's dimensions, spacing, value histogram and occupied percentage.
+    Info {
+        /// Dataset name, phantom spec or file (see `vizsim info --help`).
+        dataset: String,
+        #[command(flatten)]
+        data: DataArgs,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Occupancy maps per sub-cube size: storage bits, SRAM fit, skippable sub-cubes ('0', class).
+    Occupancy {
+        /// Dataset name, phantom spec or file.
+        dataset: String,
+        #[command(flatten)]
+        data: DataArgs,
+        /// Transfer function for the class map: `class`, `zero`, a preset or a file.
+        #[arg(long, default_value = "class")]
+        tf: String,
+        #[command(flatten)]
+        hardware: HardwareArgs,
+        /// Print JSON instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Compare two images: max error per channel, PSNR, pixels differing by more than 1 LSB.
+    Compare {
+        a: PathBuf,
+        b: PathBuf,
+        /// Write the comparison as JSON.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Write a difference image (|A - B| x 16).
+        #[arg(long)]
+        diff: Option<PathBuf>,
+    },
+    /// Render orbits and a gallery of the phantoms and the datasets present into reports/demo/.
+    Demo {
+        #[command(flatten)]
+        data: DataArgs,
+        /// Output folder.
+        #[arg(long, default_value = "reports/demo")]
+        out: PathBuf,
+        /// Frames of the orbit (the published animation has 72, 5 degrees each).
+        #[arg(long, default_value_t = 72)]
+        frames: u32,
+    },
+}
+
+#[derive(Args, Clone)]
+struct DataArgs {
+    /// Folder holding the real datasets (env VIZSIM_DATA; default ../shared/data when present).
+    #[arg(long)]
+    data_dir: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    /// Dataset: a name in the data folder (fuel, neghip, aneurism...), phantom:KIND[:SIZE], or a file.
+    #[arg(long)]
+    dataset: String,
+    #[command(flatten)]
+    data: DataArgs,
+    /// Transfer function: `zero`, `class` (the dataset's own), a preset name, or a TOML file.
+    #[arg(long, default_value = "class")]
+    tf: String,
+    /// `front` or `orbit:K/N` (frame K of an N-frame orbit about the vertical axis).
+    #[arg(long, default_value = "front")]
+    view: String,
+    #[arg(long, value_enum, default_value = "ortho")]
+    projection: ProjectionArg,
+    /// Image size WxH.
+    #[arg(long, default_value = "256x256")]
+    size: String,
+    /// Sample spacing along the ray, in voxels.
+    #[arg(long, default_value_t = 1.0)]
+    spacing: f32,
+    /// Disable early ray termination.
+    #[arg(long)]
+    no_ert: bool,
+    /// Early ray termination threshold (accumulated opacity).
+    #[arg(long, default_value_t = 0.95)]
+    ert_threshold: f32,
+    /// Phong shading from gradients.
+    #[arg(long)]
+    shading: bool,
+    /// Output PNG.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Also write statistics as JSON.
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// `float`: the reference ray caster; `fixed`: the functional fixed-point model.
+    #[arg(long, value_enum, default_value = "float")]
+    model: ModelArg,
+    #[command(flatten)]
+    hardware: HardwareArgs,
+}
+
+#[derive(Args, Clone)]
+struct HardwareArgs {
+    /// Hardware configuration TOML (default: the embedded configs/hardware/vizard2.toml).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Override a configuration field, validated like the file: --set skip.reciprocal_bits=6.
+    #[arg(long = "set", value_name = "FIELD=VALUE")]
+    overrides: Vec<String>,
+    /// Space leaping with sub-cubes of this edge (2..64); without it, no leaping.
+    #[arg(long)]
+    subcube: Option<usize>,
+    /// Two-level occupancy hierarchy (2x2x2 sub-cubes per byte).
+    #[arg(long)]
+    hierarchy: bool,
+    /// Which occupancy map: '0' (`zero`) or `class`.
+    #[arg(long, value_enum)]
+    occupancy: Option<OccupancyArg>,
+}
+
+impl HardwareArgs {
+    /// The configuration file with --set, then the leaping flags applied as overrides too, so
+    /// every value goes through the same validation.
+    fn load(&self) -> Result<HardwareConfig> {
+        let mut overrides = self.overrides.clone();
+        if let Some(s) = self.subcube {
+            overrides.push(format!("occupancy.subcube={s}"));
+        }
+        if self.hierarchy {
+            overrides.push("occupancy.hierarchy=true".into());
+        }
+        if let Some(kind) = self.occupancy {
+            overrides.push(format!("occupancy.kind={}", kind.toml_name()));
+        }
+        Ok(HardwareConfig::load(self.config.as_deref(), &overrides)?)
+    }
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, PartialEq, Eq)]
+enum ModelArg {
+    Float,
+    Fixed,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy)]
+enum OccupancyArg {
+    Zero,
+    Class,
+}
+
+impl OccupancyArg {
+    fn toml_name(self) -> &'static str {
+        match self {
+            OccupancyArg::Zero => "\"zero\"",
+            OccupancyArg::Class => "\"class\"",
+        }
+    }
+}
+
+#[derive(clap::ValueEnum, Clone, Copy)]
+enum ProjectionArg {
+    Ortho,
+    Persp,
+}
+
+impl From<ProjectionArg> for Projection {
+    fn from(p: ProjectionArg) -> Self {
+        match p {
+            ProjectionArg::Ortho => Projection::Ortho,
+            ProjectionArg::Persp => Projection::Persp,
+        }
+    }
+}
+
+fn main() {
+    let cli = Cli::parse();
+    if let Err(err) = run(cli) {
+        eprintln!("error: {err:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    if let Some(n) = cli.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .context("setting the thread count")?;
+    }
+    match cli.command {
+        Command::Render(args) => render(args),
+        Command::Info {
+            dataset,
+            data,
+            json,
+        } => info(&dataset, &data, json),
+        Command::Demo { data, out, frames } => demo(&data, &out, frames),
+        Command::Occupancy {
+            dataset,
+            data,
+            tf,
+            hardware,
+            json,
+        } => occupancy(&dataset, &data, &tf, &hardware, json),
+        Command::Compare { a, b, json, diff } => compare(&a, &b, json.as_deref(), diff.as_deref()),
+    }
+}
+
+fn load_volume(spec: &str, data: &DataArgs) -> Result<Volume> {
+    let dir = dataset::data_dir(data.data_dir.as_deref());
+    Ok(dataset::load(spec, dir.as_deref())?)
+}
+
+fn volume_extent(volume: &Volume) -> glam::Vec3 {
+    glam::Vec3::from(volume.extent())
+}
+
+#[derive(serde::Serialize)]
+struct RenderReport<'a> {
+    dataset: &'a str,
+    transfer_function: &'a str,
+    model: &'a str,
+    view: &'a str,
+    projection: Projection,
+    width: u32,
+    height: u32,
+    settings: &'a RenderSettings,
+    stats: &'a FrameStats,
+    /// Fixed-point model: samples + leaps, the published cost unit.
+    steps: u64,
+    samples: u64,
+    leaps: u64,
+    /// Fixed-point model: steps x clock.step_time_ns (the published cost method).
+    frame_time_ns: Option<f64>,
+    /// Frames per second at that frame time.
+    fps: Option<f64>,
+    /// The resolved hardware configuration (fixed-point model).
+    hardware: Option<&'a HardwareConfig>,
+    leaping: Option<Leaping>,
+    wall_seconds: f64,
+    samples_per_second: f64,
+}
+
+fn render(args: RenderArgs) -> Result<()> {
+    let (width, height) = parse_image_size(&args.size)?;
+    let view = View::parse(&args.view)?;
+    let hardware = if args.model == ModelArg::Fixed {
+        Some(args.hardware.load()?)
+    } else {
+        anyhow::ensure!(
+            args.hardware.config.is_none()
+                && args.hardware.overrides.is_empty()
+                && args.hardware.subcube.is_none()
+                && !args.hardware.hierarchy
+                && args.hardware.occupancy.is_none(),
+            "--config, --set, --subcube, --hierarchy and --occupancy apply to --model fixed"
+        );
+        None
+    };
+    let ert_threshold = match &hardware {
+        Some(h) => {
+            (h.compositing.ert && !args.no_ert).then_some(h.compositing.ert_threshold as f32)
+        }
+        None => (!args.no_ert).then_some(args.ert_threshold),
+    };
+    let settings = RenderSettings {
+        sample_spacing: args.spacing,
+        ert_threshold,
+        shading: args.shading,
+        ..RenderSettings::default()
+    };
+    settings.validate()?;
+    let volume = load_volume(&args.dataset, &args.data)?;
+    let tf = transfer::resolve(&args.tf, &volume.name)?;
+    let camera = Camera::for_volume(
+        volume_extent(&volume),
+        view,
+        args.projection.into(),
+        width,
+        height,
+    )?;
+    let start = Instant::now();
+    let (frame, leaping) = match &hardware {
+        None => (
+            FloatRenderer::new(&volume, &tf, &settings)?.render(&camera),
+            None,
+        ),
+        Some(h) => {
+            let leaping = Leaping::from_config(h);
+            let renderer = FixedRenderer::new(&volume, &tf, &settings, h, leaping)?;
+            (renderer.render(&camera), Some(leaping))
+        }
+    };
+    let wall = start.elapsed().as_secs_f64();
+    frame.write_png(&args.output)?;
+    let stats = frame.stats();
+    let frame_time_ns = hardware
+        .as_ref()
+        .map(|h| stats.steps() as f64 * h.clock.step_time_ns);
+    println!(
+        "{}: {} rays, {} hit, {} samples, {} leaps, {} terminated early{}, {:.3} s ({:.1} M samples/s) -> {}",
+        volume.name,
+        stats.rays,
+        stats.rays_hit,
+        stats.samples,
+        stats.leaps,
+        stats.rays_terminated_early,
+        frame_time_ns
+            .map(|t| format!(", {} steps = {:.3} ms/frame = {:.1} fps", stats.steps(), t / 1e6, 1e9 / t))
+            .unwrap_or_default(),
+        wall,
+        stats.samples as f64 / wall / 1e6,
+        args.output.display()
+    );
+    if let Some(json) = &args.json {
+        let report = RenderReport {
+            dataset: &volume.name,
+            transfer_function: &tf.name,
+            model: if hardware.is_some() { "fixed" } else { "float" },
+            view: &args.view,
+            projection: args.projection.into(),
+            width,
+            height,
+            settings: &settings,
+            stats: &stats,
+            steps: stats.steps(),
+            samples: stats.samples,
+            leaps: stats.leaps,
+            frame_time_ns,
+            fps: frame_time_ns.map(|t| 1e9 / t),
+            hardware: hardware.as_ref(),
+            leaping,
+            wall_seconds: wall,
+            samples_per_second: stats.samples as f64 / wall,
+        };
+        vizsim::output::write_json(json, &report)?;
+    }
+    Ok(())
+}
+
+fn info(spec: &str, data: &DataArgs, json: bool) -> Result<()> {
+    let volume = load_volume(spec, data)?;
+    let info = volume.info();
+    if json {
+        println!("{}", serde_json::to_string_pretty(&info)?);
+    } else {
+        println!("dataset   {}", info.name);
+        println!(
+            "dims      {} x {} x {} ({} voxels, {} bit)",
+            info.dims[0], info.dims[1], info.dims[2], info.voxels, info.bits
+        );
+        println!(
+            "spacing   {} {} {}",
+            info.spacing[0], info.spacing[1], info.spacing[2]
+        );
+        println!(
+            "values    min {} max {} mean {:.2}",
+            info.min, info.max, info.mean
+        );
+        println!("occupied  {:.2} % of voxels > 0", info.occupied_percent);
+        let total = info.voxels.max(1) as f64;
+        let bin = (volume.max_value() as usize + 1) / 16;
+        for (i, count) in info.histogram16.iter().enumerate() {
+            let pct = 100.0 * *count as f64 / total;
+            println!(
+                "  {:>5}..{:<5} {:>7.3} % {}",
+                i * bin,
+                (i + 1) * bin - 1,
+                pct,
+                "#".repeat((pct / 2.0).ceil() as usize)
+            );
+        }
+    }
+    Ok(())
+}
+
+#[derive(serde::Serialize)]
+struct OccupancyRow {
+    subcube: usize,
+    /// Map bits: one per sub-cube.
+    bits: u64,
+    /// Map bits with the two-level hierarchy (padded to whole bytes of 2x2x2 sub-cubes).
+    bits_with_hierarchy: u64,
+    fits_sram: bool,
+    fits_sram_with_hierarchy: bool,
+    /// Percentage of sub-cubes that are empty, '0' map.
+    skippable_zero_percent: f64,
+    /// Percentage of sub-cubes that are empty, class map.
+    skippable_class_percent: f64,
+    /// Percentage of 2x2x2 groups that are empty (whole-group leaps), '0' and class maps.
+    empty_groups_zero_percent: f64,
+    empty_groups_class_percent: f64,
+}
+
+fn occupancy(
+    spec: &str,
+    data: &DataArgs,
+    tf_arg: &str,
+    hardware: &HardwareArgs,
+    json: bool,
+) -> Result<()> {
+    use vizsim::functional::arith::ClassificationTable;
+    use vizsim::occupancy::{OccupancyKind, OccupancyMap, SUBCUBE_SIZES};
+    let config = hardware.load()?;
+    let volume = load_volume(spec, data)?;
+    let tf = transfer::resolve(tf_arg, &volume.name)?;
+    let table = ClassificationTable::build(
+        &tf,
+        volume.max_value() as usize + 1,
+        config.classification.lut_bits,
+        1.0,
+    );
+    let sram = config.occupancy.sram_bits;
+    let largest = *volume.dims.iter().max().unwrap_or(&0);
+    let pct = |part: usize, whole: usize| 100.0 * part as f64 / whole.max(1) as f64;
+    let rows: Vec<OccupancyRow> = SUBCUBE_SIZES
+        .iter()
+        .filter(|&&s| s <= largest)
+        .map(|&s| {
+            let log2 = s.trailing_zeros();
+            let zero = OccupancyMap::build(&volume, OccupancyKind::Zero, log2, 0, |_, _| true);
+            let class = OccupancyMap::build(&volume, OccupancyKind::Class, log2, 0, |lo, hi| {
+                table.any_visible(lo, hi)
+            });
+            let groups = zero.group_dims.iter().product::<usize>();
+            OccupancyRow {
+                subcube: s,
+                bits: zero.storage_bits(false),
+                bits_with_hierarchy: zero.storage_bits(true),
+                fits_sram: zero.storage_bits(false) <= sram,
+                fits_sram_with_hierarchy: zero.storage_bits(true) <= sram,
+                skippable_zero_percent: pct(zero.empty_subcubes(), zero.subcubes()),
+                skippable_class_percent: pct(class.empty_subcubes(), class.subcubes()),
+                empty_groups_zero_percent: pct(zero.empty_groups(), groups),
+                empty_groups_class_percent: pct(class.empty_groups(), groups),
+            }
+        })
+        .collect();
+    if json {
+        #[derive(serde::Serialize)]
+        struct Report<'a> {
+            dataset: &'a str,
+            transfer_function: &'a str,
+            sram_bits: u64,
+            sizes: &'a [OccupancyRow],
+        }
+        let report = Report {
+            dataset: &volume.name,
+            transfer_function: &tf.name,
+            sram_bits: sram,
+            sizes: &rows,
+        };
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "{}: occupancy maps, transfer function {} (class), SRAM {sram} bit",
+        volume.name, tf.name
+    );
+    println!("| sub-cube | map bits | fits SRAM | skippable '0' | skippable class | empty groups '0' | empty groups class |");
+    println!("|---:|---:|:---:|---:|---:|---:|---:|");
+    for r in &rows {
+        println!(
+            "| {}³ | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % |",
+            r.subcube,
+            r.bits,
+            if r.fits_sram { "yes" } else { "no" },
+            r.skippable_zero_percent,
+            r.skippable_class_percent,
+            r.empty_groups_zero_percent,
+            r.empty_groups_class_percent
+        );
+    }
+    Ok(())
+}
+
+fn compare(a: &Path, b: &Path, json: Option<&Path>, diff: Option<&Path>) -> Result<()> {
+    use vizsim::compare;
+    let (wa, ha, pa) = compare::load_rgba(a)?;
+    let (wb, hb, pb) = compare::load_rgba(b)?;
+    anyhow::ensure!(
+        (wa, ha) == (wb, hb),
+        "{} is {wa}x{ha} but {} is {wb}x{hb}",
+        a.display(),
+        b.display()
+    );
+    let result = compare::compare(&pa, &pb, wa, ha)?;
+    println!(
+        "max |error| R {} G {} B {} A {}, mean {:.4}, PSNR {:.2} dB, {} pixels differ by more than 1 LSB{}",
+        result.max_abs_error[0],
+        result.max_abs_error[1],
+        result.max_abs_error[2],
+        result.max_abs_error[3],
+        result.mean_abs_error,
+        result.psnr_db,
+        result.pixels_over_1_lsb,
+        if result.identical { " (identical)" } else { "" }
+    );
+    if let Some(path) = json {
+        vizsim::output::write_json(path, &result)?;
+    }
+    if let Some(path) = diff {
+        let frame = Frame {
+            width: wa,
+            height: ha,
+            pixels: compare::difference_image(&pa, &pb, 16),
+            rays: Vec::new(),
+        };
+        frame.write_png(path)?;
+    }
+    Ok(())
+}
+
+/// The main job on the embedded default: orbits of a phantom (and of fuel when the data folder
+/// is there) as contact sheets, and a front-view gallery of every dataset with both of its
+/// transfer functions.
+fn demo(data: &DataArgs, out: &Path, frames: u32) -> Result<()> {
+    anyhow::ensure!(frames >= 1, "--frames must be at least 1");
+    let dir = dataset::data_dir(data.data_dir.as_deref());
+    let mut orbit_sets = vec!["phantom:metaballs:64".to_string()];
+    let mut gallery: Vec<String> = vizsim::volume::phantom::PhantomKind::ALL
+        .iter()
+        .map(|k| format!("phantom:{}:64", k.name()))
+        .collect();
+    match &dir {
+        Some(d) if d.is_dir() => {
+            orbit_sets.push("fuel".into());
+            gallery.extend(dataset::scan(d)?.into_iter().map(|e| e.name));
+        }
+        _ => {
+            println!("no data directory (--data-dir / VIZSIM_DATA / ../shared/data): phantoms only")
+        }
+    }
+    let settings = RenderSettings::default();
+    for spec in &orbit_sets {
+        let volume = dataset::load(spec, dir.as_deref())?;
+        let tf = transfer::resolve("class", &volume.name)?;
+        let renderer = FloatRenderer::new(&volume, &tf, &settings)?;
+        let start = Instant::now();
+        let mut images = Vec::new();
+        for k in 0..frames {
+            let camera = Camera::for_volume(
+                volume_extent(&volume),
+                View::Orbit { k, n: frames },
+                Projection::Ortho,
+                128,
+                128,
+            )?;
+            images.push(renderer.render(&camera));
+        }
+        let step = (frames / 12).max(1) as usize;
+        let picked: Vec<&Frame> = images.iter().step_by(step).take(12).collect();
+        let path = out.join(format!("orbit-{}.png", file_safe(&volume.name)));
+        write_contact_sheet(&picked, 6, &path)?;
+        println!(
+            "{}: {frames}-frame orbit in {:.2} s -> {}",
+            volume.name,
+            start.elapsed().as_secs_f64(),
+            path.display()
+        );
+    }
+    for spec in &gallery {
+        let volume = dataset::load(spec, dir.as_deref())?;
+        let mut row = Vec::new();
+        for kind in ["zero", "class"] {
+            let tf = transfer::resolve(kind, &volume.name)?;
+            let renderer = FloatRenderer::new(&volume, &tf, &settings)?;
+            for view in [View::Front, View::Orbit { k: 1, n: 4 }] {
+                let camera =
+                    Camera::for_volume(volume_extent(&volume), view, Projection::Ortho, 256, 256)?;
+                row.push(renderer.render(&camera));
+            }
+        }
+        let path = out.join(format!("gallery-{}.png", file_safe(&volume.name)));
+        write_contact_sheet(&row.iter().collect::<Vec<_>>(), 4, &path)?;
+        println!(
+            "{}: zero | class, front and side -> {}",
+            volume.name,
+            path.display()
+        );
+    }
+    Ok(())
+}
+
+fn file_safe(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '-'
+            }
+        })
+        .collect()
+}
+
+/// Tiles frames of equal size into one PNG, `columns` per row.
+fn write_contact_sheet(frames: &[&Frame], columns: usize, path: &Path) -> Result<()> {
+    let Some(first) = frames.first() else {
+        return Ok(());
+    };
+    let (w, h) = (first.width, first.height);
+    let rows = frames.len().div_ceil(columns) as u32;
+    let cols = columns.min(frames.len()) as u32;
+    let sheet = Frame {
+        width: w * cols,
+        height: h * rows,
+        pixels: {
+            let mut pixels = vec![[0u8, 0, 0, 255]; (w * cols * h * rows) as usize];
+            for (i, f) in frames.iter().enumerate() {
+                let (ox, oy) = ((i as u32 % cols) * w, (i as u32 / cols) * h);
+                for y in 0..h {
+                    for x in 0..w {
+                        pixels[((oy + y) * w * cols + ox + x) as usize] =
+                            f.pixels[(y * w + x) as usize];
+                    }
+                }
+            }
+            pixels
+        },
+        rays: Vec::new(),
+    };
+    sheet.write_png(path)?;
+    Ok(())
+}

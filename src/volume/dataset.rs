@@ -1,1 +1,156 @@
 //! Datasets by name.
+//!
+//! A dataset argument is one of:
+//! - `phantom:KIND[:SIZE][:seed=N][:t=F]`: a generated phantom (see `phantom`);
+//! - a path to a `.raw` (named by the `NAME_XxYxZ_uint8.raw` convention), `.nrrd`, `.nhdr` or
+//!   dataset descriptor `.toml` file;
+//! - a short name found in the data directory: `fuel` finds `fuel_64x64x64_uint8.raw`. Files
+//!   in a `lossy_previews` folder are named `NAME-lossy`. Where two files share a name (the two
+//!   tooth crops) each is named by its full stem, e.g. `tooth_103x94x161`. `vessel` is the
+//!   published name of `aneurism`.
+//!
+//! The data directory is `--data-dir`, else env `VIZSIM_DATA`, else `../shared/data` when that
+//! folder exists.
+
+use std::path::{Path, PathBuf};
+
+use super::{nrrd, phantom, raw, Volume};
+use crate::error::{Error, Result};
+
+pub const DATA_DIR_ENV: &str = "VIZSIM_DATA";
+const DEFAULT_DATA_DIR: &str = "../shared/data";
+
+/// Published names that refer to a dataset under another file name.
+const ALIASES: &[(&str, &str)] = &[("vessel", "aneurism")];
+
+/// The data directory to use: the explicit option, else the environment, else the default
+/// when it exists. None when no data directory is available.
+pub fn data_dir(explicit: Option<&Path>) -> Option<PathBuf> {
+    if let Some(p) = explicit {
+        return Some(p.to_path_buf());
+    }
+    if let Some(p) = std::env::var_os(DATA_DIR_ENV) {
+        if !p.is_empty() {
+            return Some(PathBuf::from(p));
+        }
+    }
+    let default = PathBuf::from(DEFAULT_DATA_DIR);
+    default.is_dir().then_some(default)
+}
+
+/// A dataset file found in the data directory.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DatasetEntry {
+    pub name: String,
+    pub path: PathBuf,
+}
+
+/// Every dataset in `dir` (and its immediate sub-folders), sorted by name.
+pub fn scan(dir: &Path) -> Result<Vec<DatasetEntry>> {
+    let mut found: Vec<(String, String, PathBuf)> = Vec::new(); // (short, stem, path)
+    let mut folders = vec![(dir.to_path_buf(), false)];
+    let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
+    for entry in entries.flatten() {
+        if entry.path().is_dir() {
+            let lossy = entry.file_name().to_string_lossy().contains("lossy");
+            folders.push((entry.path(), lossy));
+        }
+    }
+    for (folder, lossy) in folders {
+        let Ok(entries) = std::fs::read_dir(&folder) else {
+            continue;
+        };
+        for entry in entries.flatten() {
+            let path = entry.path();
+            let file_name = entry.file_name().to_string_lossy().into_owned();
+            let short = if let Some(parsed) = raw::parse_raw_file_name(&file_name) {
+                parsed.name
+            } else if file_name.ends_with(".nrrd") || file_name.ends_with(".nhdr") {
+                file_name
+                    .rsplit_once('.')
+                    .map(|(stem, _)| stem.to_string())
+                    .unwrap_or_default()
+            } else {
+                continue;
+            };
+            // The full name for disambiguation: `tooth_103x94x161` (type tag dropped).
+            let stem = file_name
+                .split('.')
+                .next()
+                .unwrap_or_default()
+                .trim_end_matches("_uint8")
+                .trim_end_matches("_uint16")
+                .to_string();
+            let suffix = if lossy || file_name.contains("LOSSY") {
+                "-lossy"
+            } else {
+                ""
+            };
+            found.push((format!("{short}{suffix}"), format!("{stem}{suffix}"), path));
+        }
+    }
+    let mut out: Vec<DatasetEntry> = found
+        .iter()
+        .map(|(short, stem, path)| {
+            let shared = found.iter().filter(|(s, _, _)| s == short).count() > 1;
+            DatasetEntry {
+                name: if shared { stem.clone() } else { short.clone() },
+                path: path.clone(),
+            }
+        })
+        .collect();
+    out.sort_by(|a, b| a.name.cmp(&b.name));
+    Ok(out)
+}
+
+/// Loads the dataset named by `spec` (see the module docs).
+pub fn load(spec: &str, data_dir: Option<&Path>) -> Result<Volume> {
+    if let Some(rest) = spec.strip_prefix("phantom:") {
+        return Ok(phantom::generate(&phantom::parse_spec(rest)?));
+    }
+    let as_path = Path::new(spec);
+    if as_path.is_file() {
+        return load_file(as_path);
+    }
+    let name = ALIASES
+        .iter()
+        .find(|(alias, _)| *alias == spec)
+        .map(|(_, name)| *name)
+        .unwrap_or(spec);
+    let available = match data_dir {
+        Some(dir) => scan(dir)?,
+        None => Vec::new(),
+    };
+    if let Some(entry) = available.iter().find(|e| e.name == name) {
+        let mut volume = load_file(&entry.path)?;
+        volume.name = entry.name.clone();
+        return Ok(volume);
+    }
+    let mut names: Vec<String> = available.into_iter().map(|e| e.name).collect();
+    names.push("phantom:sphere|shells|jet|metaballs|cast[:SIZE]".into());
+    let where_ = match data_dir {
+        Some(d) => format!(" (data directory {})", d.display()),
+        None => format!(" (no data directory: give --data-dir or set {DATA_DIR_ENV})"),
+    };
+    Err(Error::UnknownDataset {
+        name: spec.to_string(),
+        available: format!("{}{where_}", names.join(", ")),
+    })
+}
+
+/// Loads a volume file by its extension.
+pub fn load_file(path: &Path) -> Result<Volume> {
+    let name = path.to_string_lossy();
+    if name.ends_with(".nrrd") || name.ends_with(".nhdr") {
+        nrrd::load_nrrd(path)
+    } else if name.ends_with(".toml") {
+        raw::load_descriptor(path)
+    } else if name.ends_with(".raw") {
+        raw::load_raw_by_file_name(path)
+    } else {
+        Err(Error::format(
+            path,
+            "unknown volume file type; expected .raw (NAME_XxYxZ_uint8.raw), .nrrd, .nhdr or a .toml descriptor",
+        ))
+    }
+}

@@ -1,0 +1,254 @@
+//! Hardware configuration: typed TOML (`configs/hardware/*.toml`), unknown fields rejected,
+//! every value validated once at load with an error naming the file, the field and the allowed
+//! range. `--set section.field=value` overrides are applied to the TOML before it is read, so
+//! they are validated exactly like the file. Field meanings: docs/config.md.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::occupancy::{OccupancyKind, SUBCUBE_SIZES};
+
+/// The embedded default (`configs/hardware/vizard2.toml`), so a fresh clone runs with no file.
+pub const DEFAULT_TOML: &str = include_str!("../configs/hardware/vizard2.toml");
+pub const DEFAULT_NAME: &str = "configs/hardware/vizard2.toml";
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HardwareConfig {
+    pub clock: ClockConfig,
+    pub ray: RayConfig,
+    pub skip: SkipConfig,
+    pub occupancy: OccupancyConfig,
+    pub interpolation: InterpolationConfig,
+    pub classification: ClassificationConfig,
+    pub compositing: CompositingConfig,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClockConfig {
+    /// The published cost of one step (sample or leap) of the functional model, in ns.
+    pub step_time_ns: f64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RayConfig {
+    /// Integer bits of a sample position (unsigned): positions up to 2^bits - 1 voxels.
+    pub position_int_bits: u32,
+    /// Fraction bits of a sample position.
+    pub position_frac_bits: u32,
+    /// Fraction bits of the per-sample increment V (its integer part is as wide as the sample
+    /// spacing needs).
+    pub increment_frac_bits: u32,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SkipConfig {
+    /// Significant bits of the per-ray reciprocals 1/|V_i| (mantissa of an exponent-scaled
+    /// value, rounded down).
+    pub reciprocal_bits: u32,
+    /// Fraction bits kept of the distance to the sub-cube boundary (truncated).
+    pub distance_frac_bits: u32,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OccupancyConfig {
+    /// Sub-cube edge in voxels (2, 4, ..., 64), or 0 for no space leaping.
+    pub subcube: usize,
+    /// Two-level hierarchy: a zero byte of 2×2×2 sub-cubes leaps the whole 2s group.
+    pub hierarchy: bool,
+    /// Which map: "zero" ('0') or "class".
+    pub kind: OccupancyKind,
+    /// On-chip SRAM capacity for the map, in bits (XCV1000 block RAM: 131072).
+    pub sram_bits: u64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InterpolationConfig {
+    /// Bits of each trilinear weight (the position's fraction truncated to this many bits).
+    pub weight_bits: u32,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClassificationConfig {
+    /// Bits per entry (R, G, B and A) of the classification lookup table.
+    pub lut_bits: u32,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CompositingConfig {
+    /// Bits of the colour and alpha accumulators (unsigned fractions, 2^bits - 1 = 1.0).
+    pub accumulator_bits: u32,
+    /// Early ray termination on/off.
+    pub ert: bool,
+    /// Accumulated opacity at which a ray terminates.
+    pub ert_threshold: f64,
+}
+
+impl HardwareConfig {
+    /// The embedded default configuration.
+    pub fn default_config() -> HardwareConfig {
+        Self::from_toml_str(DEFAULT_TOML, DEFAULT_NAME, &[])
+            .expect("embedded default config is valid")
+    }
+
+    /// Reads a file (or the embedded default when `path` is None) and applies `--set` overrides.
+    pub fn load(path: Option<&Path>, overrides: &[String]) -> Result<HardwareConfig> {
+        match path {
+            Some(p) => {
+                let text = std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?;
+                Self::from_toml_str(&text, &p.display().to_string(), overrides)
+            }
+            None => Self::from_toml_str(DEFAULT_TOML, DEFAULT_NAME, overrides),
+        }
+    }
+
+    pub fn from_toml_str(text: &str, source: &str, overrides: &[String]) -> Result<HardwareConfig> {
+        let mut table: toml::Table = text
+            .parse()
+            .map_err(|e| Error::format(source, format!("invalid TOML: {e}")))?;
+        for assignment in overrides {
+            apply_override(&mut table, assignment)?;
+        }
+        let source_name = if overrides.is_empty() {
+            source.to_string()
+        } else {
+            format!("{source} with --set {}", overrides.join(" --set "))
+        };
+        let config: HardwareConfig = table
+            .try_into()
+            .map_err(|e| Error::format(&source_name, format!("invalid configuration: {e}")))?;
+        config.validate(&source_name)?;
+        Ok(config)
+    }
+
+    /// Checks every field against its allowed range.
+    pub fn validate(&self, source: &str) -> Result<()> {
+        let range = |field: &str, value: u64, lo: u64, hi: u64| -> Result<()> {
+            if value < lo || value > hi {
+                return Err(Error::config(
+                    source,
+                    field,
+                    format!("{value} is out of range; allowed {lo}..={hi}"),
+                ));
+            }
+            Ok(())
+        };
+        let r = &self.ray;
+        range("ray.position_int_bits", r.position_int_bits as u64, 2, 16)?;
+        range("ray.position_frac_bits", r.position_frac_bits as u64, 1, 24)?;
+        range(
+            "ray.increment_frac_bits",
+            r.increment_frac_bits as u64,
+            1,
+            r.position_frac_bits as u64,
+        )?;
+        range(
+            "skip.reciprocal_bits",
+            self.skip.reciprocal_bits as u64,
+            2,
+            32,
+        )?;
+        range(
+            "skip.distance_frac_bits",
+            self.skip.distance_frac_bits as u64,
+            0,
+            r.position_frac_bits as u64,
+        )?;
+        let o = &self.occupancy;
+        if o.subcube != 0 && !SUBCUBE_SIZES.contains(&o.subcube) {
+            return Err(Error::config(
+                source,
+                "occupancy.subcube",
+                format!(
+                    "{} is not allowed; allowed 0 (no leaping) or {SUBCUBE_SIZES:?}",
+                    o.subcube
+                ),
+            ));
+        }
+        range("occupancy.sram_bits", o.sram_bits, 1, 1 << 32)?;
+        range(
+            "interpolation.weight_bits",
+            self.interpolation.weight_bits as u64,
+            1,
+            16,
+        )?;
+        range(
+            "classification.lut_bits",
+            self.classification.lut_bits as u64,
+            2,
+            16,
+        )?;
+        range(
+            "compositing.accumulator_bits",
+            self.compositing.accumulator_bits as u64,
+            2,
+            30,
+        )?;
+        let t = self.compositing.ert_threshold;
+        if !(t > 0.0 && t <= 1.0) {
+            return Err(Error::config(
+                source,
+                "compositing.ert_threshold",
+                format!("{t} is out of range; allowed (0, 1]"),
+            ));
+        }
+        let step = self.clock.step_time_ns;
+        if !(step.is_finite() && step > 0.0 && step <= 1e6) {
+            return Err(Error::config(
+                source,
+                "clock.step_time_ns",
+                format!("{step} is out of range; allowed (0, 1e6] ns"),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Applies `a.b.c=value` to a TOML table. The value is read as TOML (`8`, `true`, `0.9`,
+/// `"class"`); a bare word that is not TOML is taken as a string (`kind=class`). The path must
+/// name an existing field, so a typo is an error rather than a silently ignored setting.
+pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
+    let bad = |msg: &str| Error::config("--set", assignment, msg);
+    let (path, raw) = assignment
+        .split_once('=')
+        .ok_or_else(|| bad("expected section.field=value"))?;
+    let path = path.trim();
+    let raw = raw.trim();
+    let value: toml::Value = toml::from_str::<toml::Table>(&format!("v = {raw}"))
+        .ok()
+        .and_then(|mut t| t.remove("v"))
+        .unwrap_or_else(|| toml::Value::String(raw.to_string()));
+    let keys: Vec<&str> = path.split('.').collect();
+    let (last, parents) = keys.split_last().ok_or_else(|| bad("empty field path"))?;
+    let mut current = table;
+    for key in parents {
+        current = current
+            .get_mut(*key)
+            .and_then(|v| v.as_table_mut())
+            .ok_or_else(|| Error::config("--set", path, format!("no section `{key}`")))?;
+    }
+    match current.get_mut(*last) {
+        Some(slot) if !slot.is_table() => {
+            *slot = value;
+            Ok(())
+        }
+        Some(_) => Err(Error::config("--set", path, "is a section, not a field")),
+        None => Err(Error::config(
+            "--set",
+            path,
+            format!(
+                "unknown field `{last}`; fields here: {}",
+                current.keys().cloned().collect::<Vec<_>>().join(", ")
+            ),
+        )),
+    }
+}

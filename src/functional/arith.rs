@@ -1,0 +1,180 @@
+//! The per-sample arithmetic of the pipeline in fixed point: trilinear interpolation,
+//! classification table, front-to-back compositing and early ray termination. Every rounding
+//! is stated where it happens; docs/model.md lists them all.
+
+use crate::transfer::{correct_opacity, TransferFunction};
+use crate::volume::Volume;
+
+/// Trilinear interpolation at a fixed-point position (units of 2^-pf voxels, inside the box).
+///
+/// Weights: the position's fraction truncated to `wb` bits, w in [0, 2^wb] (2^wb only at the
+/// upper face, where the lower corner is dim-2). The three lerps keep every bit (the result has
+/// 3·wb fraction bits, exact), and the density is rounded to nearest once at the end: the
+/// classification table's index.
+#[inline(always)]
+pub fn interpolate(volume: &Volume, pos: [i64; 3], pf: u32, wb: u32) -> u16 {
+    let d = volume.dims;
+    let one = 1u64 << wb;
+    let mut base = [0usize; 3];
+    let mut w = [0u64; 3];
+    for a in 0..3 {
+        let p = pos[a] as u64;
+        let b = ((p >> pf) as usize).min(d[a] - 2);
+        let frac = p - ((b as u64) << pf);
+        base[a] = b;
+        w[a] = if pf >= wb {
+            frac >> (pf - wb)
+        } else {
+            frac << (wb - pf)
+        };
+    }
+    let (sy, sz) = (d[0], d[0] * d[1]);
+    let i0 = base[0] + sy * base[1] + sz * base[2];
+    let data = &volume.data;
+    let v = |i: usize| data[i] as u64;
+    let lerp = |a: u64, b: u64, t: u64| a * (one - t) + b * t;
+    let c00 = lerp(v(i0), v(i0 + 1), w[0]);
+    let c10 = lerp(v(i0 + sy), v(i0 + sy + 1), w[0]);
+    let c01 = lerp(v(i0 + sz), v(i0 + sz + 1), w[0]);
+    let c11 = lerp(v(i0 + sz + sy), v(i0 + sz + sy + 1), w[0]);
+    let c0 = lerp(c00, c10, w[1]);
+    let c1 = lerp(c01, c11, w[1]);
+    let c = lerp(c0, c1, w[2]);
+    let shift = 3 * wb;
+    ((c + (1u64 << (shift - 1))) >> shift) as u16
+}
+
+/// The classification lookup table: one RGBA entry per density, each component `bits` wide,
+/// an unsigned fraction with 2^bits - 1 = 1.0. Built from the transfer function at integer
+/// densities, opacity corrected for the sample spacing, rounded to nearest.
+#[derive(Clone, Debug)]
+pub struct ClassificationTable {
+    pub bits: u32,
+    entries: Vec<[u16; 4]>,
+    /// visible_prefix[i] = number of entries below i with non-zero opacity.
+    visible_prefix: Vec<u32>,
+}
+
+impl ClassificationTable {
+    pub fn build(tf: &TransferFunction, densities: usize, bits: u32, spacing: f32) -> Self {
+        let unit = ((1u32 << bits) - 1) as f32;
+        let entries: Vec<[u16; 4]> = (0..densities)
+            .map(|i| {
+                let mut rgba = tf.eval(i as f32);
+                rgba[3] = correct_opacity(rgba[3], spacing);
+                rgba.map(|c| (c * unit).round() as u16)
+            })
+            .collect();
+        let mut visible_prefix = Vec::with_capacity(densities + 1);
+        let mut count = 0u32;
+        visible_prefix.push(0);
+        for e in &entries {
+            count += (e[3] > 0) as u32;
+            visible_prefix.push(count);
+        }
+        ClassificationTable {
+            bits,
+            entries,
+            visible_prefix,
+        }
+    }
+
+    #[inline(always)]
+    pub fn lookup(&self, density: u16) -> [u16; 4] {
+        self.entries[density as usize]
+    }
+
+    /// Whether any density in [lo, hi] has non-zero opacity in the table: the exact emptiness
+    /// test for class occupancy maps, since an interpolated density rounds into [min, max] of
+    /// its neighbours.
+    pub fn any_visible(&self, lo: u16, hi: u16) -> bool {
+        self.visible_prefix[hi as usize + 1] > self.visible_prefix[lo as usize]
+    }
+}
+
+/// Colour and opacity accumulated along a ray, `bits`-wide unsigned fractions.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Accumulator {
+    pub colour: [u32; 3],
+    pub alpha: u32,
+}
+
+/// Front-to-back compositing in fixed point.
+///
+/// With unit U = 2^accumulator_bits - 1 (= 1.0), table entries widened to U by
+/// `widen(x) = round(x·U / (2^lut_bits - 1))`, and `mul(x, y) = round(x·y / U)` (to nearest;
+/// U is odd, so there are no ties):
+///
+/// ```text
+/// w  = mul(U - A, a)        contribution weight
+/// A += w
+/// C += mul(w, c)            per colour channel
+/// ```
+///
+/// A never exceeds U and each C never exceeds A. ERT: the ray terminates once A >= ceil(t·U).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Compositor {
+    pub unit: u32,
+    lut_unit: u32,
+    /// Raw ERT threshold; without ERT a value A can never reach.
+    threshold: u64,
+    background: [u32; 4],
+}
+
+impl Compositor {
+    pub fn new(
+        accumulator_bits: u32,
+        lut_bits: u32,
+        ert_threshold: Option<f32>,
+        background: [f32; 4],
+    ) -> Self {
+        let unit = (1u32 << accumulator_bits) - 1;
+        let threshold = match ert_threshold {
+            Some(t) => (t as f64 * unit as f64).ceil() as u64,
+            None => u64::MAX,
+        };
+        Compositor {
+            unit,
+            lut_unit: (1u32 << lut_bits) - 1,
+            threshold,
+            background: background.map(|c| (c as f64 * unit as f64).round() as u32),
+        }
+    }
+
+    #[inline(always)]
+    fn mul(&self, x: u32, y: u32) -> u32 {
+        ((x as u64 * y as u64 + (self.unit as u64 >> 1)) / self.unit as u64) as u32
+    }
+
+    #[inline(always)]
+    fn widen(&self, x: u16) -> u32 {
+        let l = self.lut_unit as u64;
+        ((x as u64 * self.unit as u64 + l / 2) / l) as u32
+    }
+
+    /// Composites one classified sample; returns true when the ray has reached the ERT threshold.
+    #[inline(always)]
+    pub fn composite(&self, acc: &mut Accumulator, rgba: [u16; 4]) -> bool {
+        if rgba[3] != 0 {
+            let w = self.mul(self.unit - acc.alpha, self.widen(rgba[3]));
+            acc.alpha += w;
+            for c in 0..3 {
+                acc.colour[c] += self.mul(w, self.widen(rgba[c]));
+            }
+        }
+        acc.alpha as u64 >= self.threshold
+    }
+
+    /// The final pixel: background composited behind, each channel rounded to 8 bits.
+    pub fn finish(&self, acc: &Accumulator) -> [u8; 4] {
+        let rest = self.unit - acc.alpha;
+        let u = self.unit as u64;
+        let to8 = |x: u32| ((x as u64 * 255 + u / 2) / u) as u8;
+        [
+            to8(acc.colour[0] + self.mul(rest, self.background[0])),
+            to8(acc.colour[1] + self.mul(rest, self.background[1])),
+            to8(acc.colour[2] + self.mul(rest, self.background[2])),
+            to8(acc.alpha + self.mul(rest, self.background[3])),
+        ]
+    }
+}

@@ -1,0 +1,212 @@
+//! The functional fixed-point renderer: per ray, set up in fixed point, then at each position
+//! ask the space-skipping strategy whether to sample or leap, and composite the samples with
+//! the fixed-point arithmetic of `arith`. It counts steps (samples + leaps); the published cost
+//! is one step per 12.5 ns (`clock.step_time_ns`).
+
+use rayon::prelude::*;
+
+use super::arith::{interpolate, Accumulator, ClassificationTable, Compositor};
+use super::leaping::{Action, NoSkipping, OccupancyLeaping, SpaceSkipper};
+use super::setup::{check_widths, setup_ray, FixedRay};
+use super::Widths;
+use crate::camera::Camera;
+use crate::config::HardwareConfig;
+use crate::error::{Error, Result};
+use crate::occupancy::{check_subcube_size, OccupancyKind, OccupancyMap};
+use crate::render::{Frame, RayRecord, RenderSettings};
+use crate::transfer::TransferFunction;
+use crate::volume::Volume;
+
+/// How rays skip empty space.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum Leaping {
+    None,
+    Occupancy {
+        subcube: usize,
+        hierarchy: bool,
+        kind: OccupancyKind,
+    },
+}
+
+impl Leaping {
+    pub fn from_config(config: &HardwareConfig) -> Leaping {
+        let o = &config.occupancy;
+        if o.subcube == 0 {
+            Leaping::None
+        } else {
+            Leaping::Occupancy {
+                subcube: o.subcube,
+                hierarchy: o.hierarchy,
+                kind: o.kind,
+            }
+        }
+    }
+}
+
+pub struct FixedRenderer<'a> {
+    volume: &'a Volume,
+    pub widths: Widths,
+    pub table: ClassificationTable,
+    pub compositor: Compositor,
+    pub settings: RenderSettings,
+    pub leaping: Leaping,
+    pub map: Option<OccupancyMap>,
+}
+
+impl<'a> FixedRenderer<'a> {
+    /// Prepares a frame: validates the widths against the volume, builds the classification
+    /// table and, when leaping, the occupancy map (an error when it does not fit the SRAM).
+    pub fn new(
+        volume: &'a Volume,
+        tf: &TransferFunction,
+        settings: &RenderSettings,
+        config: &HardwareConfig,
+        leaping: Leaping,
+    ) -> Result<Self> {
+        settings.validate()?;
+        if settings.shading {
+            return Err(Error::Invalid(
+                "shading is not modelled in fixed point yet; render without --shading".into(),
+            ));
+        }
+        let widths = Widths::from_config(config);
+        check_widths(&widths, volume.dims, settings.sample_spacing)?;
+        let table = ClassificationTable::build(
+            tf,
+            volume.max_value() as usize + 1,
+            widths.lut_bits,
+            settings.sample_spacing,
+        );
+        let compositor = Compositor::new(
+            widths.accumulator_bits,
+            widths.lut_bits,
+            settings.ert_threshold,
+            settings.background,
+        );
+        let map = match leaping {
+            Leaping::None => None,
+            Leaping::Occupancy {
+                subcube,
+                hierarchy,
+                kind,
+            } => {
+                let log2 = check_subcube_size(subcube, volume.dims)?;
+                let map =
+                    OccupancyMap::build(volume, kind, log2, 0, |lo, hi| table.any_visible(lo, hi));
+                map.check_fits(
+                    hierarchy,
+                    config.occupancy.sram_bits,
+                    "hardware configuration",
+                )?;
+                Some(map)
+            }
+        };
+        Ok(FixedRenderer {
+            volume,
+            widths,
+            table,
+            compositor,
+            settings: settings.clone(),
+            leaping,
+            map,
+        })
+    }
+
+    pub fn render(&self, camera: &Camera) -> Frame {
+        match (&self.map, self.leaping) {
+            (Some(map), Leaping::Occupancy { hierarchy, .. }) => self.render_with(
+                camera,
+                &OccupancyLeaping::new(map, hierarchy, self.widths.skip()),
+            ),
+            _ => self.render_with(camera, &NoSkipping),
+        }
+    }
+
+    pub fn render_with<S: SpaceSkipper>(&self, camera: &Camera, skipper: &S) -> Frame {
+        let (w, h) = (camera.width, camera.height);
+        let mut pixels = vec![[0u8; 4]; (w * h) as usize];
+        let mut rays = vec![RayRecord::default(); (w * h) as usize];
+        pixels
+            .par_chunks_mut(w as usize)
+            .zip(rays.par_chunks_mut(w as usize))
+            .enumerate()
+            .for_each(|(py, (pixel_row, ray_row))| {
+                for px in 0..w {
+                    let ray = self.setup(camera, px, py as u32);
+                    let (rgba, record) = self.cast(&ray, skipper);
+                    pixel_row[px as usize] = rgba;
+                    ray_row[px as usize] = record;
+                }
+            });
+        Frame {
+            width: w,
+            height: h,
+            pixels,
+            rays,
+        }
+    }
+
+    /// Fixed-point setup of the ray through pixel (px, py).
+    pub fn setup(&self, camera: &Camera, px: u32, py: u32) -> FixedRay {
+        let ray = camera.voxel_ray(px, py, self.volume.spacing);
+        setup_ray(
+            &ray,
+            self.volume.dims,
+            self.settings.sample_spacing,
+            &self.widths,
+        )
+    }
+
+    /// The classified sample at a position: interpolation then table lookup.
+    #[inline(always)]
+    pub fn classify(&self, pos: [i64; 3]) -> [u16; 4] {
+        let density = interpolate(
+            self.volume,
+            pos,
+            self.widths.position_frac_bits,
+            self.widths.weight_bits,
+        );
+        self.table.lookup(density)
+    }
+
+    /// Marches one ray: sample or leap at each position, until the last position or ERT.
+    pub fn cast<S: SpaceSkipper>(&self, ray: &FixedRay, skipper: &S) -> ([u8; 4], RayRecord) {
+        let mut record = RayRecord {
+            hit: ray.samples > 0,
+            first_sample: ray.first_k,
+            end_sample: ray.first_k + ray.samples as i64,
+            ..RayRecord::default()
+        };
+        let mut acc = Accumulator::default();
+        let mut pos = ray.start;
+        let mut k: u64 = 0;
+        let n = ray.samples as u64;
+        while k < n {
+            match skipper.decide(pos, ray) {
+                Action::Sample => {
+                    record.samples += 1;
+                    let terminated = self.compositor.composite(&mut acc, self.classify(pos));
+                    k += 1;
+                    if terminated {
+                        record.terminated_early = k < n;
+                        break;
+                    }
+                    for a in 0..3 {
+                        pos[a] += ray.step[a];
+                    }
+                }
+                Action::Leap(steps) => {
+                    // A leap past the ray's last position simply ends the ray.
+                    let steps = steps.min(n - k);
+                    record.leaps += 1;
+                    record.skipped += steps as u32;
+                    k += steps;
+                    for a in 0..3 {
+                        pos[a] += steps as i64 * ray.step[a];
+                    }
+                }
+            }
+        }
+        (self.compositor.finish(&acc), record)
+    }
+}

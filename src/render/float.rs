@@ -1,0 +1,201 @@
+//! The float reference ray caster: the mathematically intended image.
+//!
+//! Per ray: clip to the box [0, dims-1]^3, take the samples t = k·S inside it (see
+//! `super::sample_range`), and per sample: trilinear interpolation of the 8 neighbouring voxels,
+//! classification by the transfer function (linear between table entries at integer
+//! densities), opacity corrected for the spacing, optional Phong shading, front-to-back
+//! compositing `C += (1-A)·a·c, A += (1-A)·a`, and early ray termination once A >= threshold.
+//! Finally the background is composited behind: `out = C + (1-A)·bg`.
+//!
+//! Each pixel is computed independently, so the image is bit-identical whatever the number of
+//! rayon threads.
+
+use glam::Vec3A;
+use rayon::prelude::*;
+
+use super::{clip_to_box, sample_range, Frame, RayRecord, RenderSettings};
+use crate::camera::{Camera, Ray};
+use crate::error::Result;
+use crate::transfer::{correct_opacity, TransferFunction};
+use crate::volume::Volume;
+
+/// Phong parameters of the single headlight (documented in docs/model.md).
+const AMBIENT: f32 = 0.3;
+const DIFFUSE: f32 = 0.7;
+const SPECULAR: f32 = 0.3;
+const SHININESS: i32 = 16;
+
+/// Everything a ray needs, prepared once per frame.
+pub struct FloatRenderer<'a> {
+    volume: &'a Volume,
+    /// Transfer function at every integer density, plus one extra copy of the last entry so
+    /// that interpolation at the top density needs no branch.
+    table: Vec<[f32; 4]>,
+    settings: RenderSettings,
+}
+
+impl<'a> FloatRenderer<'a> {
+    pub fn new(
+        volume: &'a Volume,
+        tf: &TransferFunction,
+        settings: &RenderSettings,
+    ) -> Result<Self> {
+        settings.validate()?;
+        let entries = volume.max_value() as usize + 1;
+        let mut table = tf.sample_table(entries);
+        table.push(table[entries - 1]);
+        Ok(FloatRenderer {
+            volume,
+            table,
+            settings: settings.clone(),
+        })
+    }
+
+    pub fn render(&self, camera: &Camera) -> Frame {
+        let (w, h) = (camera.width, camera.height);
+        let mut pixels = vec![[0u8; 4]; (w * h) as usize];
+        let mut rays = vec![RayRecord::default(); (w * h) as usize];
+        pixels
+            .par_chunks_mut(w as usize)
+            .zip(rays.par_chunks_mut(w as usize))
+            .enumerate()
+            .for_each(|(py, (pixel_row, ray_row))| {
+                for px in 0..w {
+                    let ray = camera.voxel_ray(px, py as u32, self.volume.spacing);
+                    let (rgba, record) = self.cast(&ray);
+                    pixel_row[px as usize] = rgba;
+                    ray_row[px as usize] = record;
+                }
+            });
+        Frame {
+            width: w,
+            height: h,
+            pixels,
+            rays,
+        }
+    }
+
+    /// Casts one ray; returns the final pixel and what the ray did.
+    pub fn cast(&self, ray: &Ray) -> ([u8; 4], RayRecord) {
+        let mut record = RayRecord::default();
+        let mut colour = [0.0f32; 3];
+        let mut alpha = 0.0f32;
+        if let Some((t_enter, t_exit)) = clip_to_box(ray, self.volume.dims) {
+            let s = self.settings.sample_spacing;
+            let (first, end) = sample_range(t_enter, t_exit, s);
+            record.t_enter = t_enter;
+            record.t_exit = t_exit;
+            record.first_sample = first;
+            record.end_sample = end;
+            record.hit = end > first;
+            let threshold = self.settings.ert_threshold.unwrap_or(f32::INFINITY);
+            for k in first..end {
+                let p = ray.origin + ray.dir * (k as f32 * s);
+                let rgba = self.classify(p, ray.dir);
+                record.samples += 1;
+                let a = if s == 1.0 {
+                    rgba[3]
+                } else {
+                    correct_opacity(rgba[3], s)
+                };
+                let weight = (1.0 - alpha) * a;
+                for c in 0..3 {
+                    colour[c] += weight * rgba[c];
+                }
+                alpha += weight;
+                if alpha >= threshold {
+                    record.terminated_early = k + 1 < end;
+                    break;
+                }
+            }
+        }
+        let bg = self.settings.background;
+        let out = [
+            colour[0] + (1.0 - alpha) * bg[0],
+            colour[1] + (1.0 - alpha) * bg[1],
+            colour[2] + (1.0 - alpha) * bg[2],
+            alpha + (1.0 - alpha) * bg[3],
+        ];
+        (out.map(to_u8), record)
+    }
+
+    /// Colour and per-voxel opacity of the sample at `p` (voxel space, inside the box).
+    #[inline(always)]
+    fn classify(&self, p: Vec3A, dir: Vec3A) -> [f32; 4] {
+        let v = self.interpolate(p);
+        let i = v as usize; // v >= 0: truncation is floor
+        let f = v - i as f32;
+        let (a, b) = (self.table[i], self.table[i + 1]);
+        let mut rgba = [0, 1, 2, 3].map(|c| a[c] + f * (b[c] - a[c]));
+        if self.settings.shading && rgba[3] > 0.0 {
+            let factor = self.phong(p, dir);
+            for c in rgba.iter_mut().take(3) {
+                *c = (*c * factor.0 + factor.1).min(1.0);
+            }
+        }
+        rgba
+    }
+
+    /// Trilinear interpolation; positions are clamped into the box so that rounding at its
+    /// faces cannot read outside the volume.
+    #[inline(always)]
+    pub fn interpolate(&self, p: Vec3A) -> f32 {
+        let d = self.volume.dims;
+        let mut base = [0usize; 3];
+        let mut frac = [0f32; 3];
+        for axis in 0..3 {
+            let hi = (d[axis] - 1) as f32;
+            let x = p[axis].clamp(0.0, hi);
+            // The lower corner stays <= dim-2 so the +1 neighbour exists; at x = dim-1, frac = 1.
+            let b = (x as usize).min(d[axis] - 2);
+            base[axis] = b;
+            frac[axis] = x - b as f32;
+        }
+        let data = &self.volume.data;
+        let sx = 1;
+        let sy = d[0];
+        let sz = d[0] * d[1];
+        let i0 = base[0] + sy * base[1] + sz * base[2];
+        let v = |i: usize| data[i] as f32;
+        let c00 = lerp(v(i0), v(i0 + sx), frac[0]);
+        let c10 = lerp(v(i0 + sy), v(i0 + sy + sx), frac[0]);
+        let c01 = lerp(v(i0 + sz), v(i0 + sz + sx), frac[0]);
+        let c11 = lerp(v(i0 + sz + sy), v(i0 + sz + sy + sx), frac[0]);
+        lerp(lerp(c00, c10, frac[1]), lerp(c01, c11, frac[1]), frac[2])
+    }
+
+    /// (diffuse factor, specular term) for a headlight along the ray.
+    fn phong(&self, p: Vec3A, dir: Vec3A) -> (f32, f32) {
+        let e = |axis: usize| {
+            let mut o = Vec3A::ZERO;
+            o[axis] = 1.0;
+            o
+        };
+        let g = Vec3A::new(
+            self.interpolate(p + e(0)) - self.interpolate(p - e(0)),
+            self.interpolate(p + e(1)) - self.interpolate(p - e(1)),
+            self.interpolate(p + e(2)) - self.interpolate(p - e(2)),
+        ) * 0.5;
+        let len = g.length();
+        if len < 1e-3 {
+            // No defined surface: lit as if facing the light.
+            return (AMBIENT + DIFFUSE, SPECULAR);
+        }
+        // Two-sided: the headlight is both light and view direction, so N·L = N·H.
+        let n_dot_l = (g.dot(dir) / len).abs();
+        (
+            AMBIENT + DIFFUSE * n_dot_l,
+            SPECULAR * n_dot_l.powi(SHININESS),
+        )
+    }
+}
+
+#[inline(always)]
+fn lerp(a: f32, b: f32, t: f32) -> f32 {
+    a + t * (b - a)
+}
+
+#[inline]
+fn to_u8(x: f32) -> u8 {
+    (x.clamp(0.0, 1.0) * 255.0).round() as u8
+}

@@ -1,0 +1,183 @@
+//! The binary's behaviour on good and bad input: messages that say what and where, a non-zero
+//! exit, and no output file left behind on failure.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn vizsim(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("run vizsim")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("vizsim-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Runs a command that must fail: non-zero exit, the stderr mentions every `needle`, no panic,
+/// and `output` was not created.
+fn assert_fails(args: &[&str], needles: &[&str], output: &Path) {
+    let out = vizsim(args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{args:?} succeeded");
+    assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
+    for n in needles {
+        assert!(stderr.contains(n), "{args:?}: stderr lacks {n:?}: {stderr}");
+    }
+    assert!(!output.exists(), "{args:?} left {}", output.display());
+}
+
+#[test]
+fn render_writes_a_png_and_json() {
+    let dir = scratch("ok");
+    let png = dir.join("out.png");
+    let json = dir.join("stats.json");
+    let out = vizsim(&[
+        "render",
+        "--dataset",
+        "phantom:sphere:32",
+        "--tf",
+        "class",
+        "--size",
+        "40x30",
+        "-o",
+        png.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let img = image::open(&png).unwrap();
+    assert_eq!((img.width(), img.height()), (40, 30));
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(stats["stats"]["rays"], 1200);
+    assert!(stats["stats"]["samples"].as_u64().unwrap() > 0);
+}
+
+#[test]
+fn unknown_dataset_lists_what_is_available() {
+    let dir = scratch("unknown");
+    let png = dir.join("out.png");
+    assert_fails(
+        &[
+            "render",
+            "--dataset",
+            "nonesuch",
+            "-o",
+            png.to_str().unwrap(),
+        ],
+        &["nonesuch", "phantom:"],
+        &png,
+    );
+}
+
+#[test]
+fn bad_image_sizes_fail_cleanly() {
+    let dir = scratch("size");
+    let png = dir.join("out.png");
+    for size in ["0x10", "100000x10", "abc"] {
+        assert_fails(
+            &[
+                "render",
+                "--dataset",
+                "phantom:sphere:16",
+                "--size",
+                size,
+                "-o",
+                png.to_str().unwrap(),
+            ],
+            &[size],
+            &png,
+        );
+    }
+}
+
+#[test]
+fn bad_transfer_function_files_name_the_file_and_field() {
+    let dir = scratch("tf");
+    let png = dir.join("out.png");
+    let tf = dir.join("bad.toml");
+    std::fs::write(&tf, "[[points]]\nvalue = 300\nrgba = [0, 0, 0, 2]\n").unwrap();
+    assert_fails(
+        &[
+            "render",
+            "--dataset",
+            "phantom:sphere:16",
+            "--tf",
+            tf.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+        ],
+        &["bad.toml", "points[0].rgba"],
+        &png,
+    );
+    std::fs::write(
+        &tf,
+        "[[points]]\nvalue = 3\nrgba = [0, 0, 0, 1]\nopacity = 1\n",
+    )
+    .unwrap();
+    assert_fails(
+        &[
+            "render",
+            "--dataset",
+            "phantom:sphere:16",
+            "--tf",
+            tf.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+        ],
+        &["bad.toml", "opacity"],
+        &png,
+    );
+}
+
+#[test]
+fn raw_file_with_wrong_size_names_the_file() {
+    let dir = scratch("raw");
+    let png = dir.join("out.png");
+    let raw = dir.join("blob_8x8x8_uint8.raw");
+    std::fs::write(&raw, vec![1u8; 500]).unwrap();
+    assert_fails(
+        &[
+            "render",
+            "--dataset",
+            raw.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+        ],
+        &["blob_8x8x8_uint8.raw", "512"],
+        &png,
+    );
+}
+
+#[test]
+fn info_reports_the_published_occupancy() {
+    let Some(dir) = common::data_dir() else {
+        return;
+    };
+    for (name, published) in [("fuel", 5.24), ("neghip", 46.38), ("aneurism", 1.01)] {
+        let out = vizsim(&["info", name, "--json", "--data-dir", dir.to_str().unwrap()]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let info: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let pct = info["occupied_percent"].as_f64().unwrap();
+        assert!(
+            (pct - published).abs() < 0.005,
+            "{name}: {pct} vs {published}"
+        );
+    }
+}
