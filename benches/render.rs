@@ -57,3 +57,47 @@ fn float_256(bencher: divan::Bencher) {
         .counter(ItemsCount::new(samples))
         .bench(|| pool.install(|| renderer.render(&camera)));
 }
+
+/// The functional fixed-point model, same frame; divan's items are steps (samples + leaps).
+/// `subcube` 0 = no leaping.
+#[divan::bench(sample_count = 5, args = [0, 8])]
+fn fixed_256(bencher: divan::Bencher, subcube: usize) {
+    use vizsim::config::HardwareConfig;
+    use vizsim::functional::renderer::{FixedRenderer, Leaping};
+    let volume = volume_256();
+    let tf = transfer::resolve("class", &volume.name).unwrap();
+    let settings = RenderSettings {
+        ert_threshold: None,
+        ..Default::default()
+    };
+    let mut config = HardwareConfig::default_config();
+    config.occupancy.subcube = subcube;
+    let renderer = FixedRenderer::new(
+        volume,
+        &tf,
+        &settings,
+        &config,
+        Leaping::from_config(&config),
+    )
+    .unwrap();
+    let camera = Camera::for_volume(
+        glam::Vec3::from(volume.extent()),
+        View::Orbit { k: 5, n: 72 },
+        Projection::Ortho,
+        256,
+        256,
+    )
+    .unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let steps = pool.install(|| renderer.render(&camera)).stats().steps();
+    println!(
+        "fixed_256 (subcube {subcube}): {} on 1 thread, {steps} steps per frame",
+        volume.name
+    );
+    bencher
+        .counter(ItemsCount::new(steps))
+        .bench(|| pool.install(|| renderer.render(&camera)));
+}

@@ -68,6 +68,34 @@ enum Command {
         #[arg(long)]
         diff: Option<PathBuf>,
     },
+    /// Exhaustively verify the skip calculator: every (position within a sub-cube, increment)
+    /// pair at these widths; reports overshoots (must be 0) and the worst wasted steps.
+    VerifySkip {
+        /// Fraction bits of the increment V.
+        #[arg(long, default_value_t = 8)]
+        increment_bits: u32,
+        /// Fraction bits of positions (default: = increment bits).
+        #[arg(long)]
+        position_bits: Option<u32>,
+        /// Significant bits of the reciprocal 1/|V|.
+        #[arg(long, default_value_t = 8)]
+        reciprocal_bits: u32,
+        /// Fraction bits kept of the boundary distance (default: = position bits).
+        #[arg(long)]
+        distance_bits: Option<u32>,
+        /// Sub-cube edge in voxels (2..64); several allowed.
+        #[arg(long, default_values_t = [16])]
+        subcube: Vec<usize>,
+        /// Reciprocal rounding: `down` (shipped, safe) or `nearest` (unsafe, shows the checker works).
+        #[arg(long, value_enum, default_value = "down")]
+        rounding: RoundingArg,
+        /// Largest increment enumerated, in voxels (default 1: one sample per voxel or finer).
+        #[arg(long, default_value_t = 1)]
+        max_increment_voxels: u64,
+        /// Print JSON.
+        #[arg(long)]
+        json: bool,
+    },
     /// Render orbits and a gallery of the phantoms and the datasets present into reports/demo/.
     Demo {
         #[command(flatten)]
@@ -175,6 +203,12 @@ enum ModelArg {
 }
 
 #[derive(clap::ValueEnum, Clone, Copy)]
+enum RoundingArg {
+    Down,
+    Nearest,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy)]
 enum OccupancyArg {
     Zero,
     Class,
@@ -234,6 +268,31 @@ fn run(cli: Cli) -> Result<()> {
             hardware,
             json,
         } => occupancy(&dataset, &data, &tf, &hardware, json),
+        Command::VerifySkip {
+            increment_bits,
+            position_bits,
+            reciprocal_bits,
+            distance_bits,
+            subcube,
+            rounding,
+            max_increment_voxels,
+            json,
+        } => {
+            let position_bits = position_bits.unwrap_or(increment_bits);
+            verify_skip(
+                vizsim::skip::SkipWidths::new(
+                    position_bits,
+                    increment_bits,
+                    reciprocal_bits,
+                    distance_bits.unwrap_or(position_bits),
+                )
+                .map_err(|e| anyhow::anyhow!("verify-skip: {e}"))?,
+                &subcube,
+                rounding,
+                max_increment_voxels,
+                json,
+            )
+        }
         Command::Compare { a, b, json, diff } => compare(&a, &b, json.as_deref(), diff.as_deref()),
     }
 }
@@ -502,6 +561,60 @@ fn occupancy(
             r.empty_groups_zero_percent,
             r.empty_groups_class_percent
         );
+    }
+    Ok(())
+}
+
+fn verify_skip(
+    widths: vizsim::skip::SkipWidths,
+    subcubes: &[usize],
+    rounding: RoundingArg,
+    max_increment_voxels: u64,
+    json: bool,
+) -> Result<()> {
+    use vizsim::skip::{verify_exhaustive, ReciprocalRounding, VerifyParams};
+    let rounding = match rounding {
+        RoundingArg::Down => ReciprocalRounding::Down,
+        RoundingArg::Nearest => ReciprocalRounding::Nearest,
+    };
+    let mut reports = Vec::new();
+    for &s in subcubes {
+        anyhow::ensure!(
+            vizsim::occupancy::SUBCUBE_SIZES.contains(&s),
+            "--subcube {s}: allowed {:?}",
+            vizsim::occupancy::SUBCUBE_SIZES
+        );
+        let mut params = VerifyParams::new(widths, s.trailing_zeros(), rounding);
+        params.max_increment = max_increment_voxels
+            .checked_shl(widths.inc_frac_bits)
+            .filter(|&m| m >= 1 && m <= 1 << 24)
+            .ok_or_else(|| anyhow::anyhow!("--max-increment-voxels {max_increment_voxels}: too many increments to enumerate"))?;
+        let report = verify_exhaustive(&params).map_err(|e| anyhow::anyhow!("verify-skip: {e}"))?;
+        if !json {
+            println!(
+                "sub-cube {s}³: {} cases, {} violations, worst wasted steps {}, mean {:.4}{}",
+                report.cases,
+                report.violations,
+                report.worst_wasted_steps,
+                report.mean_wasted_steps,
+                report
+                    .first_violation
+                    .map(|v| format!(
+                        "; first violation: offset {} LSB, increment {} LSB: {} steps computed, {} exact",
+                        v.offset, v.increment, v.computed_steps, v.exact_steps
+                    ))
+                    .unwrap_or_default()
+            );
+        }
+        reports.push(report);
+    }
+    if json {
+        let value = if reports.len() == 1 {
+            serde_json::to_value(&reports[0])?
+        } else {
+            serde_json::to_value(&reports)?
+        };
+        println!("{}", serde_json::to_string_pretty(&value)?);
     }
     Ok(())
 }

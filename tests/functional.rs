@@ -3,88 +3,15 @@
 
 mod common;
 
-use glam::Vec3;
-use vizsim::camera::{Camera, Projection, View};
+use common::{assert_leaping_is_invisible, camera, render_fixed, views};
+use vizsim::camera::{Projection, View};
 use vizsim::compare::compare;
 use vizsim::config::HardwareConfig;
 use vizsim::functional::renderer::{FixedRenderer, Leaping};
 use vizsim::occupancy::OccupancyKind;
 use vizsim::render::float::FloatRenderer;
-use vizsim::render::{Frame, RenderSettings};
+use vizsim::render::RenderSettings;
 use vizsim::transfer::TransferFunction;
-use vizsim::volume::Volume;
-
-pub fn views() -> Vec<(View, Projection)> {
-    vec![
-        (View::Front, Projection::Ortho),
-        (View::Orbit { k: 7, n: 72 }, Projection::Ortho), // oblique
-        (View::Orbit { k: 50, n: 72 }, Projection::Persp),
-    ]
-}
-
-fn camera(volume: &Volume, view: View, projection: Projection, size: u32) -> Camera {
-    Camera::for_volume(Vec3::from(volume.extent()), view, projection, size, size).unwrap()
-}
-
-fn render_fixed(
-    volume: &Volume,
-    tf: &TransferFunction,
-    camera: &Camera,
-    settings: &RenderSettings,
-    leaping: Leaping,
-) -> Frame {
-    let mut config = HardwareConfig::default_config();
-    config.occupancy.sram_bits = 1 << 24; // every size fits for these checks
-    FixedRenderer::new(volume, tf, settings, &config, leaping)
-        .unwrap()
-        .render(camera)
-}
-
-/// Leaping must change only the step count: same pixels, never more steps on any ray.
-pub fn assert_leaping_is_invisible(volume: &Volume, tf: &TransferFunction, size: u32) {
-    for (view, projection) in views() {
-        let cam = camera(volume, view, projection, size);
-        for ert in [Some(0.95), None] {
-            let settings = RenderSettings {
-                ert_threshold: ert,
-                ..Default::default()
-            };
-            let plain = render_fixed(volume, tf, &cam, &settings, Leaping::None);
-            for subcube in [2, 4, 8, 16, 32, 64] {
-                if subcube > *volume.dims.iter().max().unwrap() {
-                    continue;
-                }
-                for hierarchy in [false, true] {
-                    for kind in [OccupancyKind::Zero, OccupancyKind::Class] {
-                        let leap = render_fixed(
-                            volume,
-                            tf,
-                            &cam,
-                            &settings,
-                            Leaping::Occupancy {
-                                subcube,
-                                hierarchy,
-                                kind,
-                            },
-                        );
-                        let what = format!(
-                            "{} {view:?} {projection:?} ert {ert:?} s={subcube} h={hierarchy} {kind:?}",
-                            volume.name
-                        );
-                        assert!(leap.pixels == plain.pixels, "image differs: {what}");
-                        for (l, p) in leap.rays.iter().zip(&plain.rays) {
-                            assert!(
-                                l.samples + l.leaps <= p.samples,
-                                "leaping cost more steps: {what}"
-                            );
-                            assert_eq!(l.terminated_early, p.terminated_early, "{what}");
-                        }
-                    }
-                }
-            }
-        }
-    }
-}
 
 fn ball_tf() -> TransferFunction {
     common::tf(&[

@@ -10,7 +10,7 @@
 //! Each pixel is computed independently, so the image is bit-identical whatever the number of
 //! rayon threads.
 
-use glam::Vec3A;
+use glam::{Vec3A, Vec4};
 use rayon::prelude::*;
 
 use super::{clip_to_box, sample_range, Frame, RayRecord, RenderSettings};
@@ -30,7 +30,7 @@ pub struct FloatRenderer<'a> {
     volume: &'a Volume,
     /// Transfer function at every integer density, plus one extra copy of the last entry so
     /// that interpolation at the top density needs no branch.
-    table: Vec<[f32; 4]>,
+    table: Vec<Vec4>,
     settings: RenderSettings,
 }
 
@@ -42,7 +42,11 @@ impl<'a> FloatRenderer<'a> {
     ) -> Result<Self> {
         settings.validate()?;
         let entries = volume.max_value() as usize + 1;
-        let mut table = tf.sample_table(entries);
+        let mut table: Vec<Vec4> = tf
+            .sample_table(entries)
+            .into_iter()
+            .map(Vec4::from_array)
+            .collect();
         table.push(table[entries - 1]);
         Ok(FloatRenderer {
             volume,
@@ -78,8 +82,8 @@ impl<'a> FloatRenderer<'a> {
     /// Casts one ray; returns the final pixel and what the ray did.
     pub fn cast(&self, ray: &Ray) -> ([u8; 4], RayRecord) {
         let mut record = RayRecord::default();
-        let mut colour = [0.0f32; 3];
-        let mut alpha = 0.0f32;
+        // Accumulated (R, G, B, A): a sample of colour c and opacity a adds (1 - A)·a·(c, 1).
+        let mut acc = Vec4::ZERO;
         if let Some((t_enter, t_exit)) = clip_to_box(ray, self.volume.dims) {
             let s = self.settings.sample_spacing;
             let (first, end) = sample_range(t_enter, t_exit, s);
@@ -94,44 +98,38 @@ impl<'a> FloatRenderer<'a> {
                 let rgba = self.classify(p, ray.dir);
                 record.samples += 1;
                 let a = if s == 1.0 {
-                    rgba[3]
+                    rgba.w
                 } else {
-                    correct_opacity(rgba[3], s)
+                    correct_opacity(rgba.w, s)
                 };
-                let weight = (1.0 - alpha) * a;
-                for c in 0..3 {
-                    colour[c] += weight * rgba[c];
-                }
-                alpha += weight;
-                if alpha >= threshold {
+                acc += (1.0 - acc.w) * a * rgba.truncate().extend(1.0);
+                if acc.w >= threshold {
                     record.terminated_early = k + 1 < end;
                     break;
                 }
             }
         }
-        let bg = self.settings.background;
-        let out = [
-            colour[0] + (1.0 - alpha) * bg[0],
-            colour[1] + (1.0 - alpha) * bg[1],
-            colour[2] + (1.0 - alpha) * bg[2],
-            alpha + (1.0 - alpha) * bg[3],
-        ];
-        (out.map(to_u8), record)
+        let bg = Vec4::from_array(self.settings.background);
+        let out = acc + (1.0 - acc.w) * bg;
+        (
+            [to_u8(out.x), to_u8(out.y), to_u8(out.z), to_u8(out.w)],
+            record,
+        )
     }
 
     /// Colour and per-voxel opacity of the sample at `p` (voxel space, inside the box).
     #[inline(always)]
-    fn classify(&self, p: Vec3A, dir: Vec3A) -> [f32; 4] {
+    fn classify(&self, p: Vec3A, dir: Vec3A) -> Vec4 {
         let v = self.interpolate(p);
         let i = v as usize; // v >= 0: truncation is floor
         let f = v - i as f32;
         let (a, b) = (self.table[i], self.table[i + 1]);
-        let mut rgba = [0, 1, 2, 3].map(|c| a[c] + f * (b[c] - a[c]));
-        if self.settings.shading && rgba[3] > 0.0 {
-            let factor = self.phong(p, dir);
-            for c in rgba.iter_mut().take(3) {
-                *c = (*c * factor.0 + factor.1).min(1.0);
-            }
+        let rgba = a + (b - a) * f;
+        if self.settings.shading && rgba.w > 0.0 {
+            let (diffuse, specular) = self.phong(p, dir);
+            let lit =
+                (rgba.truncate() * diffuse + glam::Vec3::splat(specular)).min(glam::Vec3::ONE);
+            return lit.extend(rgba.w);
         }
         rgba
     }

@@ -1,10 +1,13 @@
 //! Headerless raw volumes (8-bit, or 16-bit little-endian; x fastest) and the TOML dataset
 //! descriptor that names a raw file with its dimensions and spacing.
-//! (Contract for the implementer: see the functions' docs.)
 
+use std::fs::File;
+use std::io::{self, Read};
 use std::path::Path;
 
-use super::Volume;
+use serde::Deserialize;
+
+use super::{check_dims, nrrd, Volume};
 use crate::error::{Error, Result};
 
 /// What the usual file name convention `NAME_XxYxZ_uint8.raw` / `NAME_XxYxZ_uint16.raw` says.
@@ -16,33 +19,66 @@ pub struct RawFileName {
     pub bits: u8,
 }
 
+/// Byte order of 16-bit samples in a file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Endian {
+    Little,
+    Big,
+}
+
 /// Parses a file name (no directory) by the convention; None if it does not follow it.
+///
+/// NAME may contain underscores (`boston_teapot_256x256x178_uint8.raw`). If several
+/// `_XxYxZ_uintB` groups occur, the leftmost one wins: names are plain words, while the
+/// suffix after the type tag is free-form.
 pub fn parse_raw_file_name(file_name: &str) -> Option<RawFileName> {
     let stem = file_name.strip_suffix(".raw")?;
-    for (tag, bits) in [("_uint8", 8u8), ("_uint16", 16u8)] {
-        // The type tag ends the dims: `NAME_XxYxZ_uint8` then an optional `.suffix`.
-        let Some(at) = stem.find(tag) else { continue };
-        let rest = &stem[at + tag.len()..];
-        if !(rest.is_empty() || rest.starts_with('.')) {
-            continue;
-        }
-        let head = &stem[..at];
-        let (name, dims_text) = head.rsplit_once('_')?;
-        let parts: Vec<&str> = dims_text.split('x').collect();
-        if parts.len() != 3 || name.is_empty() {
+    let parts: Vec<&str> = stem.split('_').collect();
+    parts.windows(2).enumerate().find_map(|(i, pair)| {
+        let [dims_part, tag_part] = pair else {
+            return None;
+        };
+        let name = parts.get(..i)?.join("_");
+        if name.is_empty() {
             return None;
         }
-        let mut dims = [0usize; 3];
-        for (d, p) in dims.iter_mut().zip(&parts) {
-            *d = p.parse().ok()?;
+        Some(RawFileName {
+            name,
+            dims: parse_dims_tag(dims_part)?,
+            bits: parse_type_tag(tag_part)?,
+        })
+    })
+}
+
+/// `64x64x64` -> [64, 64, 64]; plain decimal digits only.
+fn parse_dims_tag(text: &str) -> Option<[usize; 3]> {
+    let parts: Vec<&str> = text.split('x').collect();
+    let [x, y, z] = parts.as_slice() else {
+        return None;
+    };
+    let number = |s: &str| {
+        if !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit()) {
+            s.parse::<usize>().ok()
+        } else {
+            None
         }
-        return Some(RawFileName {
-            name: name.to_string(),
-            dims,
-            bits,
-        });
-    }
-    None
+    };
+    Some([number(x)?, number(y)?, number(z)?])
+}
+
+/// `uint8`, `uint16`, optionally followed by a suffix that starts with a non-alphanumeric
+/// character (`uint8.LOSSY...`), so that e.g. `uint80` or `uint8bit` is not taken for a tag.
+fn parse_type_tag(text: &str) -> Option<u8> {
+    [("uint16", 16), ("uint8", 8)]
+        .into_iter()
+        .find_map(|(tag, bits)| {
+            let rest = text.strip_prefix(tag)?;
+            let ends_tag = rest
+                .chars()
+                .next()
+                .is_none_or(|c| !c.is_ascii_alphanumeric());
+            ends_tag.then_some(bits)
+        })
 }
 
 /// Reads a raw file. The file size must equal X*Y*Z*(bits/8) exactly, else a Format error
@@ -54,57 +90,291 @@ pub fn load_raw(
     bits: u8,
     spacing: [f32; 3],
 ) -> Result<Volume> {
-    super::check_dims(&dims).map_err(|m| Error::format(path, m))?;
-    let bytes_per_voxel = (bits / 8) as u64;
-    let expected = dims.iter().map(|&d| d as u64).product::<u64>() * bytes_per_voxel;
-    let found = std::fs::metadata(path)
-        .map_err(|e| Error::io(path, e))?
-        .len();
-    if found != expected {
+    load_raw_with_endian(path, name, dims, bits, spacing, Endian::Little)
+}
+
+/// [`load_raw`] with an explicit byte order for 16-bit samples (ignored for 8-bit).
+pub fn load_raw_with_endian(
+    path: &Path,
+    name: &str,
+    dims: [usize; 3],
+    bits: u8,
+    spacing: [f32; 3],
+    endian: Endian,
+) -> Result<Volume> {
+    // Validate before touching the file so absurd dims never lead to an allocation.
+    let expected = payload_bytes(dims, bits).map_err(|m| Error::format(path, m))?;
+    let mut file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let found = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    if found != expected as u64 {
         return Err(Error::format(
             path,
             format!(
-                "file holds {found} bytes but {}x{}x{} voxels of {bits} bits need {expected}",
+                "file size is {found} bytes, expected {expected} bytes \
+                 ({} x {} x {} voxels, uint{bits})",
                 dims[0], dims[1], dims[2]
             ),
         ));
     }
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let data: Vec<u16> = match bits {
-        8 => bytes.iter().map(|&b| b as u16).collect(),
-        16 => bytes
-            .chunks_exact(2)
-            .map(|c| u16::from_le_bytes([c[0], c[1]]))
-            .collect(),
-        _ => {
-            return Err(Error::format(
-                path,
-                format!("{bits} bits per voxel; allowed 8 or 16"),
-            ))
-        }
-    };
-    Volume::new(name, dims, spacing, bits, data).map_err(|e| Error::format(path, e.to_string()))
+    let data = read_samples(&mut file, expected, bits, endian)
+        .map_err(|e| e.into_error(path, expected))?;
+    Volume::new(name, dims, spacing, bits, data)
 }
 
 /// Reads a raw file whose name follows the convention (spacing 1 1 1).
 pub fn load_raw_by_file_name(path: &Path) -> Result<Volume> {
-    let file_name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let parsed = parse_raw_file_name(&file_name).ok_or_else(|| {
+    let file_name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+    let parsed = parse_raw_file_name(file_name).ok_or_else(|| {
         Error::format(
             path,
-            "file name does not follow NAME_XxYxZ_uint8.raw / NAME_XxYxZ_uint16.raw; \
-             give the dimensions in a dataset descriptor (.toml)",
+            "file name does not follow NAME_XxYxZ_uint8.raw or NAME_XxYxZ_uint16.raw",
         )
     })?;
     load_raw(path, &parsed.name, parsed.dims, parsed.bits, [1.0; 3])
 }
 
+/// Byte size of a payload with these dims and bits, after checking both.
+pub(crate) fn payload_bytes(dims: [usize; 3], bits: u8) -> std::result::Result<usize, String> {
+    check_dims(&dims)?;
+    let bytes_per_voxel = match bits {
+        8 => 1usize,
+        16 => 2,
+        _ => return Err(format!("{bits} bits per voxel; allowed: 8 or 16")),
+    };
+    dims.iter()
+        .try_fold(bytes_per_voxel, |acc, &d| acc.checked_mul(d))
+        .ok_or_else(|| {
+            format!("dimensions {dims:?} need more bytes than this platform can address")
+        })
+}
+
+/// Why a payload could not be decoded.
+pub(crate) enum PayloadError {
+    Io(io::Error),
+    /// The stream ended after `got` bytes.
+    Truncated {
+        got: usize,
+    },
+    /// More bytes follow the expected payload.
+    TooLong,
+}
+
+impl PayloadError {
+    /// Turns the failure into a crate error naming `path` and the expected byte count.
+    pub(crate) fn into_error(self, path: &Path, expected: usize) -> Error {
+        match self {
+            PayloadError::Io(e) => Error::io(path, e),
+            PayloadError::Truncated { got } => Error::format(
+                path,
+                format!("truncated payload: {got} bytes, need {expected}"),
+            ),
+            PayloadError::TooLong => Error::format(
+                path,
+                format!("payload longer than the {expected} bytes needed"),
+            ),
+        }
+    }
+}
+
+/// Bytes read per step. The sample vector grows with the data actually read (never beyond the
+/// voxel count), so a header that promises a huge volume over a tiny stream costs nothing.
+const CHUNK_BYTES: usize = 1 << 16;
+
+/// Reads exactly `total_bytes` (from [`payload_bytes`]) of `bits`-bit samples and checks that
+/// the stream ends right after them.
+pub(crate) fn read_samples(
+    reader: &mut impl Read,
+    total_bytes: usize,
+    bits: u8,
+    endian: Endian,
+) -> std::result::Result<Vec<u16>, PayloadError> {
+    let bytes_per_voxel = if bits == 16 { 2 } else { 1 };
+    let voxels = total_bytes / bytes_per_voxel;
+    let mut data: Vec<u16> = Vec::new();
+    let mut buf = vec![0u8; CHUNK_BYTES.min(total_bytes)];
+    let mut done = 0usize;
+    while done < total_bytes {
+        let want = (total_bytes - done).min(buf.len());
+        let chunk = &mut buf[..want];
+        let got = fill(reader, chunk).map_err(PayloadError::Io)?;
+        if got < want {
+            return Err(PayloadError::Truncated { got: done + got });
+        }
+        reserve_capped(&mut data, want / bytes_per_voxel, voxels);
+        match (bits, endian) {
+            (16, Endian::Little) => data.extend(
+                chunk
+                    .chunks_exact(2)
+                    .map(|p| u16::from_le_bytes([p[0], p[1]])),
+            ),
+            (16, Endian::Big) => data.extend(
+                chunk
+                    .chunks_exact(2)
+                    .map(|p| u16::from_be_bytes([p[0], p[1]])),
+            ),
+            _ => data.extend(chunk.iter().map(|&b| u16::from(b))),
+        }
+        done += want;
+    }
+    let mut probe = [0u8; 1];
+    if fill(reader, &mut probe).map_err(PayloadError::Io)? > 0 {
+        return Err(PayloadError::TooLong);
+    }
+    Ok(data)
+}
+
+/// Makes room for `more` elements, doubling as a Vec would but never past `cap` in total.
+fn reserve_capped(data: &mut Vec<u16>, more: usize, cap: usize) {
+    if data.capacity() - data.len() < more {
+        let target = (data.len() * 2).max(data.len() + more).min(cap);
+        data.reserve_exact(target.saturating_sub(data.len()));
+    }
+}
+
+/// Reads until `buf` is full or the stream ends; returns the number of bytes read.
+fn fill(reader: &mut impl Read, buf: &mut [u8]) -> io::Result<usize> {
+    let mut filled = 0;
+    while let Some(rest) = buf.get_mut(filled..).filter(|r| !r.is_empty()) {
+        match reader.read(rest) {
+            Ok(0) => break,
+            Ok(n) => filled += n,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(filled)
+}
+
+/// A dataset descriptor file, e.g.
+/// ```toml
+/// name = "teapot"                      # default: the descriptor's file stem
+/// file = "boston_teapot_256x256x178_uint8.raw"   # relative to the descriptor's folder
+/// dims = [256, 256, 178]               # raw only; default: from the file name
+/// type = "uint8"                       # raw only; "uint8" | "uint16"
+/// spacing = [1.0, 1.0, 1.0]            # each finite > 0
+/// endian = "little"                    # raw uint16 only; "little" | "big"
+/// ```
+/// For `.nrrd` / `.nhdr` files the header gives dims, type and byte order; `name` and
+/// `spacing` still override it.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Descriptor {
+    name: Option<String>,
+    file: String,
+    dims: Option<[usize; 3]>,
+    #[serde(rename = "type")]
+    voxel_type: Option<String>,
+    spacing: Option<[f32; 3]>,
+    endian: Option<String>,
+}
+
 /// Reads a dataset descriptor TOML (unknown fields rejected) and the raw or NRRD file it names,
 /// relative to the descriptor's folder.
 pub fn load_descriptor(path: &Path) -> Result<Volume> {
-    let _ = path;
-    unimplemented!("dataset descriptor")
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let desc: Descriptor = toml::from_str(&text)
+        .map_err(|e| Error::format(path, format!("invalid dataset descriptor: {e}")))?;
+    let source = path.display().to_string();
+    let config = |field: &str, message: String| Error::config(source.as_str(), field, message);
+
+    let name = match desc.name {
+        Some(name) if name.trim().is_empty() => {
+            return Err(config("name", "must not be empty".into()))
+        }
+        Some(name) => name,
+        None => path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+    };
+    if let Some(spacing) = desc.spacing {
+        if spacing.iter().any(|s| !s.is_finite() || *s <= 0.0) {
+            return Err(config(
+                "spacing",
+                format!("{spacing:?} out of range; allowed: finite values > 0"),
+            ));
+        }
+    }
+    if desc.file.trim().is_empty() {
+        return Err(config("file", "must not be empty".into()));
+    }
+    let data_path = path.parent().unwrap_or(Path::new("")).join(&desc.file);
+    let extension = data_path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+
+    match extension.as_deref() {
+        Some("nrrd" | "nhdr") => {
+            // The header is authoritative for layout; a second copy here could only disagree.
+            for (field, given) in [
+                ("dims", desc.dims.is_some()),
+                ("type", desc.voxel_type.is_some()),
+                ("endian", desc.endian.is_some()),
+            ] {
+                if given {
+                    return Err(config(
+                        field,
+                        "allowed only for raw files; the NRRD header gives it".into(),
+                    ));
+                }
+            }
+            let mut volume = nrrd::load_nrrd(&data_path)?;
+            volume.name = name;
+            if let Some(spacing) = desc.spacing {
+                volume.spacing = spacing;
+            }
+            Ok(volume)
+        }
+        Some("raw") => {
+            let from_file_name = data_path
+                .file_name()
+                .and_then(|n| n.to_str())
+                .and_then(parse_raw_file_name);
+            let dims = match (desc.dims, &from_file_name) {
+                (Some(dims), _) => dims,
+                (None, Some(parsed)) => parsed.dims,
+                (None, None) => {
+                    return Err(config(
+                        "dims",
+                        format!(
+                            "required: file `{}` does not follow NAME_XxYxZ_uint8.raw",
+                            desc.file
+                        ),
+                    ))
+                }
+            };
+            check_dims(&dims).map_err(|m| config("dims", m))?;
+            let bits = match desc.voxel_type.as_deref() {
+                Some("uint8") => 8,
+                Some("uint16") => 16,
+                Some(other) => {
+                    return Err(config(
+                        "type",
+                        format!("`{other}` not supported; allowed: \"uint8\", \"uint16\""),
+                    ))
+                }
+                None => from_file_name.as_ref().map_or(8, |parsed| parsed.bits),
+            };
+            let endian = match desc.endian.as_deref() {
+                None | Some("little") => Endian::Little,
+                Some("big") => Endian::Big,
+                Some(other) => {
+                    return Err(config(
+                        "endian",
+                        format!("`{other}` not supported; allowed: \"little\", \"big\""),
+                    ))
+                }
+            };
+            let spacing = desc.spacing.unwrap_or([1.0; 3]);
+            load_raw_with_endian(&data_path, &name, dims, bits, spacing, endian)
+        }
+        _ => Err(config(
+            "file",
+            format!(
+                "`{}` has an unsupported extension; allowed: .raw, .nrrd, .nhdr",
+                desc.file
+            ),
+        )),
+    }
 }

@@ -3,6 +3,12 @@
 
 use std::path::PathBuf;
 
+use glam::Vec3;
+use vizsim::camera::{Camera, Projection, View};
+use vizsim::config::HardwareConfig;
+use vizsim::functional::renderer::{FixedRenderer, Leaping};
+use vizsim::occupancy::OccupancyKind;
+use vizsim::render::{Frame, RenderSettings};
 use vizsim::transfer::{ControlPoint, TransferFunction};
 use vizsim::volume::Volume;
 
@@ -67,4 +73,97 @@ pub fn tf(points: &[(f32, [f32; 4])]) -> TransferFunction {
         "test",
     )
     .unwrap()
+}
+
+pub fn camera(volume: &Volume, view: View, projection: Projection, size: u32) -> Camera {
+    Camera::for_volume(Vec3::from(volume.extent()), view, projection, size, size).unwrap()
+}
+
+/// The fixed-point model with the default hardware, the SRAM raised so every map fits.
+pub fn render_fixed(
+    volume: &Volume,
+    tf: &TransferFunction,
+    camera: &Camera,
+    settings: &RenderSettings,
+    leaping: Leaping,
+) -> Frame {
+    let mut config = HardwareConfig::default_config();
+    config.occupancy.sram_bits = 1 << 24;
+    FixedRenderer::new(volume, tf, settings, &config, leaping)
+        .unwrap()
+        .render(camera)
+}
+
+/// Orthographic front, orthographic oblique, perspective oblique.
+pub fn views() -> Vec<(View, Projection)> {
+    vec![
+        (View::Front, Projection::Ortho),
+        (View::Orbit { k: 7, n: 72 }, Projection::Ortho),
+        (View::Orbit { k: 50, n: 72 }, Projection::Persp),
+    ]
+}
+
+/// One leaping configuration's image and steps against the plain fixed-point render: the
+/// pixels must be identical, and no ray may take more steps than without leaping.
+pub fn assert_leap_matches(
+    volume: &Volume,
+    tf: &TransferFunction,
+    cam: &Camera,
+    settings: &RenderSettings,
+    plain: &Frame,
+    leaping: Leaping,
+    what: &str,
+) {
+    let leap = render_fixed(volume, tf, cam, settings, leaping);
+    assert!(
+        leap.pixels == plain.pixels,
+        "image differs: {what} {leaping:?}"
+    );
+    for (l, p) in leap.rays.iter().zip(&plain.rays) {
+        assert!(
+            l.samples + l.leaps <= p.samples,
+            "leaping cost more steps: {what} {leaping:?}"
+        );
+        assert_eq!(l.terminated_early, p.terminated_early, "{what} {leaping:?}");
+        // Leaps cover exactly the positions the plain ray sampled in vain.
+        assert_eq!(l.samples + l.skipped, p.samples, "{what} {leaping:?}");
+    }
+}
+
+/// Every sub-cube size, hierarchy on and off, '0' and class maps, ERT on and off, in every
+/// view of `views()`.
+pub fn assert_leaping_is_invisible(volume: &Volume, tf: &TransferFunction, size: u32) {
+    for (view, projection) in views() {
+        let cam = camera(volume, view, projection, size);
+        for ert in [Some(0.95), None] {
+            let settings = RenderSettings {
+                ert_threshold: ert,
+                ..Default::default()
+            };
+            let plain = render_fixed(volume, tf, &cam, &settings, Leaping::None);
+            for subcube in [2, 4, 8, 16, 32, 64] {
+                if subcube > *volume.dims.iter().max().unwrap() {
+                    continue;
+                }
+                for hierarchy in [false, true] {
+                    for kind in [OccupancyKind::Zero, OccupancyKind::Class] {
+                        let what = format!("{} {view:?} {projection:?} ert {ert:?}", volume.name);
+                        assert_leap_matches(
+                            volume,
+                            tf,
+                            &cam,
+                            &settings,
+                            &plain,
+                            Leaping::Occupancy {
+                                subcube,
+                                hierarchy,
+                                kind,
+                            },
+                            &what,
+                        );
+                    }
+                }
+            }
+        }
+    }
 }
