@@ -587,7 +587,7 @@ fn verify_skip(
         let mut params = VerifyParams::new(widths, s.trailing_zeros(), rounding);
         params.max_increment = max_increment_voxels
             .checked_shl(widths.inc_frac_bits)
-            .filter(|&m| m >= 1 && m <= 1 << 24)
+            .filter(|m| (1..=1 << 24).contains(m))
             .ok_or_else(|| anyhow::anyhow!("--max-increment-voxels {max_increment_voxels}: too many increments to enumerate"))?;
         let report = verify_exhaustive(&params).map_err(|e| anyhow::anyhow!("verify-skip: {e}"))?;
         if !json {
