@@ -12,6 +12,8 @@ pub mod fixed;
 pub mod functional;
 pub mod occupancy;
 pub mod output;
+pub mod plot;
+pub mod precision;
 pub mod render;
 pub mod skip;
 pub mod transfer;

@@ -181,3 +181,82 @@ fn info_reports_the_published_occupancy() {
         );
     }
 }
+
+#[test]
+fn verify_skip_reports_no_violations_when_rounding_down_and_some_when_rounding_to_nearest() {
+    let run = |rounding: &str| -> serde_json::Value {
+        let out = vizsim(&[
+            "verify-skip",
+            "--increment-bits",
+            "6",
+            "--reciprocal-bits",
+            "4",
+            "--subcube",
+            "8",
+            "--rounding",
+            rounding,
+            "--json",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let down = run("down");
+    assert_eq!(down["violations"], 0);
+    assert_eq!(down["cases"], 2 * 64 * (8 * 64)); // 2 directions x increments x positions
+    assert!(down["worst_wasted_steps"].as_u64().unwrap() >= 1);
+    assert!(run("nearest")["violations"].as_u64().unwrap() > 0);
+}
+
+#[test]
+fn precision_sweep_writes_tables_and_plots_and_skip_widths_never_change_the_image() {
+    let dir = scratch("precision");
+    let out = vizsim(&[
+        "precision",
+        "--dataset",
+        "phantom:sphere:32",
+        "--size",
+        "32x32",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for suffix in [
+        ".csv",
+        ".md",
+        ".json",
+        "-psnr.png",
+        "-psnr.svg",
+        "-max-error.png",
+        "-steps.png",
+    ] {
+        let path = dir.join(format!("phantom-sphere-32{suffix}"));
+        assert!(path.is_file(), "missing {}", path.display());
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("phantom-sphere-32.json")).unwrap())
+            .unwrap();
+    let cost = report["cost"].as_array().unwrap();
+    assert!(!cost.is_empty());
+    assert!(cost
+        .iter()
+        .all(|p| p["image_identical_to_no_leaping"] == true));
+    // More increment bits never make the default-width image worse than 4 bits do.
+    let psnr = |bits: u64| {
+        report["image"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["field"] == "ray.increment_frac_bits" && p["bits"] == bits)
+            .map(|p| p["comparison"]["psnr_db"].as_f64().unwrap_or(f64::INFINITY))
+            .unwrap()
+    };
+    assert!(psnr(12) > psnr(4));
+}

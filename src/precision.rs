@@ -1,0 +1,275 @@
+//! Fixed-point precision sweeps: one width at a time against the float reference, and the skip
+//! calculator's widths against the step count (they change cost, never the image).
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use crate::camera::Camera;
+use crate::compare::{compare, Comparison};
+use crate::config::{apply_override, HardwareConfig};
+use crate::error::{Error, Result};
+use crate::functional::renderer::{FixedRenderer, Leaping};
+use crate::occupancy::OccupancyKind;
+use crate::plot::{LineChart, Series};
+use crate::render::float::FloatRenderer;
+use crate::render::RenderSettings;
+use crate::transfer::TransferFunction;
+use crate::volume::Volume;
+
+/// The image widths swept, with their ranges (the published question: increment fraction bits).
+pub const IMAGE_AXES: &[(&str, std::ops::RangeInclusive<u32>)] = &[
+    ("ray.increment_frac_bits", 4..=12),
+    ("ray.position_frac_bits", 4..=16),
+    ("interpolation.weight_bits", 2..=12),
+    ("classification.lut_bits", 4..=12),
+    ("compositing.accumulator_bits", 6..=16),
+];
+
+/// The skip widths swept for cost (with leaping at `LEAP_SUBCUBE`).
+pub const COST_AXES: &[(&str, std::ops::RangeInclusive<u32>)] = &[
+    ("skip.reciprocal_bits", 2..=16),
+    ("skip.distance_frac_bits", 0..=12),
+];
+pub const LEAP_SUBCUBE: usize = 8;
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ImagePoint {
+    pub field: String,
+    pub bits: u32,
+    pub comparison: Comparison,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct CostPoint {
+    pub field: String,
+    pub bits: u32,
+    pub steps: u64,
+    pub leaps: u64,
+    /// The leaping image equals the non-leaping fixed-point image at these widths.
+    pub image_identical_to_no_leaping: bool,
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct PrecisionReport {
+    pub dataset: String,
+    pub transfer_function: String,
+    pub image: Vec<ImagePoint>,
+    pub cost: Vec<CostPoint>,
+}
+
+/// The configuration with one field changed, validated like `--set`. Positions must keep at
+/// least the increment's fraction bits, so sweeping positions below the default increment width
+/// narrows the increment with them.
+fn with_field(base: &HardwareConfig, field: &str, bits: u32) -> Result<HardwareConfig> {
+    let mut table = toml::Table::try_from(base)
+        .map_err(|e| Error::Invalid(format!("serialising the configuration: {e}")))?;
+    let mut overrides = vec![format!("{field}={bits}")];
+    if field == "ray.position_frac_bits" && base.ray.increment_frac_bits > bits {
+        overrides.push(format!("ray.increment_frac_bits={bits}"));
+    }
+    if field == "ray.position_frac_bits" && base.skip.distance_frac_bits > bits {
+        overrides.push(format!("skip.distance_frac_bits={bits}"));
+    }
+    for o in &overrides {
+        apply_override(&mut table, o)?;
+    }
+    HardwareConfig::from_toml_str(&table.to_string(), "precision sweep", &[])
+}
+
+pub fn sweep(
+    volume: &Volume,
+    tf: &TransferFunction,
+    base: &HardwareConfig,
+    camera: &Camera,
+    settings: &RenderSettings,
+) -> Result<PrecisionReport> {
+    let reference = FloatRenderer::new(volume, tf, settings)?.render(camera);
+    let mut image = Vec::new();
+    for (field, range) in IMAGE_AXES {
+        for bits in range.clone() {
+            let config = with_field(base, field, bits)?;
+            let frame =
+                FixedRenderer::new(volume, tf, settings, &config, Leaping::None)?.render(camera);
+            image.push(ImagePoint {
+                field: field.to_string(),
+                bits,
+                comparison: compare(
+                    &frame.pixels,
+                    &reference.pixels,
+                    camera.width,
+                    camera.height,
+                )?,
+            });
+        }
+    }
+    let mut cost = Vec::new();
+    let leaping = Leaping::Occupancy {
+        subcube: LEAP_SUBCUBE.min(*volume.dims.iter().max().unwrap_or(&2)),
+        hierarchy: false,
+        kind: OccupancyKind::Class,
+    };
+    let mut roomy = base.clone();
+    roomy.occupancy.sram_bits = roomy.occupancy.sram_bits.max(1 << 24);
+    let plain = FixedRenderer::new(volume, tf, settings, &roomy, Leaping::None)?.render(camera);
+    for (field, range) in COST_AXES {
+        for bits in range.clone() {
+            if field.ends_with("distance_frac_bits") && bits > roomy.ray.position_frac_bits {
+                continue;
+            }
+            let config = with_field(&roomy, field, bits)?;
+            let frame = FixedRenderer::new(volume, tf, settings, &config, leaping)?.render(camera);
+            let stats = frame.stats();
+            cost.push(CostPoint {
+                field: field.to_string(),
+                bits,
+                steps: stats.steps(),
+                leaps: stats.leaps,
+                image_identical_to_no_leaping: frame.pixels == plain.pixels,
+            });
+        }
+    }
+    Ok(PrecisionReport {
+        dataset: volume.name.clone(),
+        transfer_function: tf.name.clone(),
+        image,
+        cost,
+    })
+}
+
+/// Writes `<stem>.csv`, `<stem>.md`, `<stem>.json`, and the charts `<stem>-psnr`,
+/// `<stem>-max-error` and `<stem>-steps` (PNG and SVG). Returns the files written.
+pub fn write_report(report: &PrecisionReport, out_dir: &Path) -> Result<Vec<PathBuf>> {
+    let stem = out_dir.join(report.dataset.replace(':', "-"));
+    let mut written = Vec::new();
+    let mut csv = String::from(
+        "dataset,field,bits,max_abs_error_r,max_abs_error_g,max_abs_error_b,max_abs_error_a,mean_abs_error,psnr_db,pixels_over_1_lsb\n",
+    );
+    for p in &report.image {
+        let c = &p.comparison;
+        let _ = writeln!(
+            csv,
+            "{},{},{},{},{},{},{},{:.5},{:.3},{}",
+            report.dataset,
+            p.field,
+            p.bits,
+            c.max_abs_error[0],
+            c.max_abs_error[1],
+            c.max_abs_error[2],
+            c.max_abs_error[3],
+            c.mean_abs_error,
+            c.psnr_db,
+            c.pixels_over_1_lsb
+        );
+    }
+    let path = stem.with_extension("csv");
+    crate::output::write_atomically(&path, |w| std::io::Write::write_all(w, csv.as_bytes()))?;
+    written.push(path);
+
+    let mut md = format!(
+        "# Fixed-point precision: {} ({})\n\nFixed-point model (default widths, one field changed at a time) \
+         against the float reference. Errors in 8-bit steps; PSNR over RGB.\n\n\
+         | field | bits | max error (R,G,B,A) | mean error | PSNR dB | pixels > 1 LSB |\n|---|---:|---|---:|---:|---:|\n",
+        report.dataset, report.transfer_function
+    );
+    for p in &report.image {
+        let c = &p.comparison;
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:?} | {:.4} | {:.2} | {} |",
+            p.field, p.bits, c.max_abs_error, c.mean_abs_error, c.psnr_db, c.pixels_over_1_lsb
+        );
+    }
+    let _ = write!(
+        md,
+        "\n## Skip widths: cost, not image (leaping with {LEAP_SUBCUBE}³ sub-cubes)\n\n\
+         | field | bits | steps | leaps | image = no-leaping image |\n|---|---:|---:|---:|:---:|\n"
+    );
+    for p in &report.cost {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {} |",
+            p.field,
+            p.bits,
+            p.steps,
+            p.leaps,
+            if p.image_identical_to_no_leaping {
+                "yes"
+            } else {
+                "NO"
+            }
+        );
+    }
+    let path = stem.with_extension("md");
+    crate::output::write_atomically(&path, |w| std::io::Write::write_all(w, md.as_bytes()))?;
+    written.push(path);
+    let path = stem.with_extension("json");
+    crate::output::write_json(&path, report)?;
+    written.push(path);
+
+    let series = |metric: &dyn Fn(&Comparison) -> f64| -> Vec<Series> {
+        IMAGE_AXES
+            .iter()
+            .map(|(field, _)| Series {
+                name: field.to_string(),
+                points: report
+                    .image
+                    .iter()
+                    .filter(|p| p.field == *field)
+                    .map(|p| (p.bits as f64, metric(&p.comparison)))
+                    .collect(),
+            })
+            .collect()
+    };
+    let title = format!("{}: fixed point vs float", report.dataset);
+    let charts = [
+        (
+            "psnr",
+            LineChart {
+                title: &title,
+                x_label: "bits of the swept field",
+                y_label: "PSNR vs float (dB, higher is better)",
+                // Identical images have infinite PSNR; cap for the chart.
+                series: series(&|c| c.psnr_db.min(80.0)),
+            },
+        ),
+        (
+            "max-error",
+            LineChart {
+                title: &title,
+                x_label: "bits of the swept field",
+                y_label: "max |error| over channels (8-bit steps)",
+                series: series(&|c| *c.max_abs_error.iter().max().unwrap_or(&0) as f64),
+            },
+        ),
+    ];
+    for (suffix, chart) in charts {
+        let s = out_dir.join(format!("{}-{suffix}", report.dataset.replace(':', "-")));
+        chart.write(&s)?;
+        written.push(s.with_extension("png"));
+    }
+    let cost_title = format!(
+        "{}: skip widths vs steps ({LEAP_SUBCUBE}³ sub-cubes)",
+        report.dataset
+    );
+    let cost_chart = LineChart {
+        title: &cost_title,
+        x_label: "bits of the swept field",
+        y_label: "steps per frame (samples + leaps)",
+        series: COST_AXES
+            .iter()
+            .map(|(field, _)| Series {
+                name: field.to_string(),
+                points: report
+                    .cost
+                    .iter()
+                    .filter(|p| p.field == *field)
+                    .map(|p| (p.bits as f64, p.steps as f64))
+                    .collect(),
+            })
+            .collect(),
+    };
+    let s = out_dir.join(format!("{}-steps", report.dataset.replace(':', "-")));
+    cost_chart.write(&s)?;
+    written.push(s.with_extension("png"));
+    Ok(written)
+}
