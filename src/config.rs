@@ -23,6 +23,7 @@ pub struct HardwareConfig {
     pub occupancy: OccupancyConfig,
     pub interpolation: InterpolationConfig,
     pub classification: ClassificationConfig,
+    pub shading: ShadingConfig,
     pub compositing: CompositingConfig,
 }
 
@@ -80,6 +81,13 @@ pub struct InterpolationConfig {
 pub struct ClassificationConfig {
     /// Bits per entry (R, G, B and A) of the classification lookup table.
     pub lut_bits: u32,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShadingConfig {
+    /// Signed bits per component of the gradient stored with each voxel (used with --shading).
+    pub gradient_bits: u32,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -179,11 +187,17 @@ impl HardwareConfig {
             "interpolation.weight_bits",
             self.interpolation.weight_bits as u64,
             1,
-            16,
+            15,
         )?;
         range(
             "classification.lut_bits",
             self.classification.lut_bits as u64,
+            2,
+            16,
+        )?;
+        range(
+            "shading.gradient_bits",
+            self.shading.gradient_bits as u64,
             2,
             16,
         )?;

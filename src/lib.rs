@@ -15,6 +15,7 @@ pub mod output;
 pub mod plot;
 pub mod precision;
 pub mod render;
+pub mod shading;
 pub mod skip;
 pub mod transfer;
 pub mod volume;

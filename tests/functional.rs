@@ -210,3 +210,50 @@ fn position_widths_too_narrow_for_the_volume_are_an_error() {
     .to_string();
     assert!(err.contains("position_int_bits"), "{err}");
 }
+
+#[test]
+fn shading_keeps_leaping_invisible_and_stays_close_to_float() {
+    let volume = common::ball(48);
+    let tf = ball_tf();
+    let settings = RenderSettings {
+        shading: true,
+        ..Default::default()
+    };
+    for (view, projection) in views() {
+        let cam = camera(&volume, view, projection, 48);
+        let plain = render_fixed(&volume, &tf, &cam, &settings, Leaping::None);
+        for (subcube, hierarchy, kind) in [
+            (2, false, OccupancyKind::Class),
+            (8, true, OccupancyKind::Zero),
+            (16, true, OccupancyKind::Class),
+        ] {
+            common::assert_leap_matches(
+                &volume,
+                &tf,
+                &cam,
+                &settings,
+                &plain,
+                Leaping::Occupancy {
+                    subcube,
+                    hierarchy,
+                    kind,
+                },
+                "shaded ball",
+            );
+        }
+        let float = FloatRenderer::new(&volume, &tf, &settings)
+            .unwrap()
+            .render(&cam);
+        let cmp = compare(&plain.pixels, &float.pixels, 48, 48).unwrap();
+        assert!(cmp.psnr_db > 40.0, "{view:?} {projection:?}: {cmp:?}");
+        // Shading must actually change the picture, or this test checks nothing.
+        let unshaded = render_fixed(
+            &volume,
+            &tf,
+            &cam,
+            &RenderSettings::default(),
+            Leaping::None,
+        );
+        assert!(unshaded.pixels != plain.pixels);
+    }
+}

@@ -5,43 +5,70 @@
 use crate::transfer::{correct_opacity, TransferFunction};
 use crate::volume::Volume;
 
-/// Trilinear interpolation at a fixed-point position (units of 2^-pf voxels, inside the box).
-///
-/// Weights: the position's fraction truncated to `wb` bits, w in [0, 2^wb] (2^wb only at the
-/// upper face, where the lower corner is dim-2). The three lerps keep every bit (the result has
-/// 3·wb fraction bits, exact), and the density is rounded to nearest once at the end: the
-/// classification table's index.
+/// The 2×2×2 neighbourhood of a fixed-point position (units of 2^-pf voxels, inside the box)
+/// and its trilinear weights: the position's fraction truncated to `wb` bits, w in [0, 2^wb]
+/// (2^wb only at the upper face, where the lower corner is dim-2).
+#[derive(Clone, Copy, Debug)]
+pub struct Neighbourhood {
+    /// Index of the lower corner voxel.
+    pub base: usize,
+    pub weights: [u64; 3],
+    stride_y: usize,
+    stride_z: usize,
+    weight_bits: u32,
+}
+
+impl Neighbourhood {
+    #[inline(always)]
+    pub fn new(dims: [usize; 3], pos: [i64; 3], pf: u32, wb: u32) -> Self {
+        let mut base = [0usize; 3];
+        let mut weights = [0u64; 3];
+        for a in 0..3 {
+            let p = pos[a] as u64;
+            let b = ((p >> pf) as usize).min(dims[a] - 2);
+            let frac = p - ((b as u64) << pf);
+            base[a] = b;
+            weights[a] = if pf >= wb {
+                frac >> (pf - wb)
+            } else {
+                frac << (wb - pf)
+            };
+        }
+        let (stride_y, stride_z) = (dims[0], dims[0] * dims[1]);
+        Neighbourhood {
+            base: base[0] + stride_y * base[1] + stride_z * base[2],
+            weights,
+            stride_y,
+            stride_z,
+            weight_bits: wb,
+        }
+    }
+
+    /// Σ weight · value over the 8 corners, exact, with 3·wb fraction bits. Three lerps, each
+    /// keeping every bit; `value(i)` reads the voxel at index i.
+    #[inline(always)]
+    pub fn weighted_sum(&self, value: impl Fn(usize) -> i64) -> i64 {
+        let one = 1i64 << self.weight_bits;
+        let w = self.weights.map(|w| w as i64);
+        let lerp = |a: i64, b: i64, t: i64| a * (one - t) + b * t;
+        let (i0, sy, sz) = (self.base, self.stride_y, self.stride_z);
+        let c00 = lerp(value(i0), value(i0 + 1), w[0]);
+        let c10 = lerp(value(i0 + sy), value(i0 + sy + 1), w[0]);
+        let c01 = lerp(value(i0 + sz), value(i0 + sz + 1), w[0]);
+        let c11 = lerp(value(i0 + sz + sy), value(i0 + sz + sy + 1), w[0]);
+        lerp(lerp(c00, c10, w[1]), lerp(c01, c11, w[1]), w[2])
+    }
+}
+
+/// Trilinear interpolation of the density at a fixed-point position: the exact weighted sum,
+/// rounded to nearest once at the end — the classification table's index.
 #[inline(always)]
 pub fn interpolate(volume: &Volume, pos: [i64; 3], pf: u32, wb: u32) -> u16 {
-    let d = volume.dims;
-    let one = 1u64 << wb;
-    let mut base = [0usize; 3];
-    let mut w = [0u64; 3];
-    for a in 0..3 {
-        let p = pos[a] as u64;
-        let b = ((p >> pf) as usize).min(d[a] - 2);
-        let frac = p - ((b as u64) << pf);
-        base[a] = b;
-        w[a] = if pf >= wb {
-            frac >> (pf - wb)
-        } else {
-            frac << (wb - pf)
-        };
-    }
-    let (sy, sz) = (d[0], d[0] * d[1]);
-    let i0 = base[0] + sy * base[1] + sz * base[2];
+    let n = Neighbourhood::new(volume.dims, pos, pf, wb);
     let data = &volume.data;
-    let v = |i: usize| data[i] as u64;
-    let lerp = |a: u64, b: u64, t: u64| a * (one - t) + b * t;
-    let c00 = lerp(v(i0), v(i0 + 1), w[0]);
-    let c10 = lerp(v(i0 + sy), v(i0 + sy + 1), w[0]);
-    let c01 = lerp(v(i0 + sz), v(i0 + sz + 1), w[0]);
-    let c11 = lerp(v(i0 + sz + sy), v(i0 + sz + sy + 1), w[0]);
-    let c0 = lerp(c00, c10, w[1]);
-    let c1 = lerp(c01, c11, w[1]);
-    let c = lerp(c0, c1, w[2]);
+    let sum = n.weighted_sum(|i| data[i] as i64);
     let shift = 3 * wb;
-    ((c + (1u64 << (shift - 1))) >> shift) as u16
+    ((sum + (1i64 << (shift - 1))) >> shift) as u16
 }
 
 /// The classification lookup table: one RGBA entry per density, each component `bits` wide,

@@ -5,15 +5,16 @@
 
 use rayon::prelude::*;
 
-use super::arith::{interpolate, Accumulator, ClassificationTable, Compositor};
+use super::arith::{interpolate, Accumulator, ClassificationTable, Compositor, Neighbourhood};
 use super::leaping::{Action, NoSkipping, OccupancyLeaping, SpaceSkipper};
 use super::setup::{check_widths, setup_ray, FixedRay};
 use super::Widths;
 use crate::camera::Camera;
 use crate::config::HardwareConfig;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::occupancy::{check_subcube_size, OccupancyKind, OccupancyMap};
 use crate::render::{Frame, RayRecord, RenderSettings};
+use crate::shading::{phong_fixed, GradientVolume};
 use crate::transfer::TransferFunction;
 use crate::volume::Volume;
 
@@ -51,6 +52,8 @@ pub struct FixedRenderer<'a> {
     pub settings: RenderSettings,
     pub leaping: Leaping,
     pub map: Option<OccupancyMap>,
+    /// Per-voxel quantised gradients, present when shading.
+    pub gradients: Option<GradientVolume>,
 }
 
 impl<'a> FixedRenderer<'a> {
@@ -64,11 +67,6 @@ impl<'a> FixedRenderer<'a> {
         leaping: Leaping,
     ) -> Result<Self> {
         settings.validate()?;
-        if settings.shading {
-            return Err(Error::Invalid(
-                "shading is not modelled in fixed point yet; render without --shading".into(),
-            ));
-        }
         let widths = Widths::from_config(config);
         check_widths(&widths, volume.dims, settings.sample_spacing)?;
         let table = ClassificationTable::build(
@@ -101,7 +99,11 @@ impl<'a> FixedRenderer<'a> {
                 Some(map)
             }
         };
+        let gradients = settings
+            .shading
+            .then(|| GradientVolume::build(volume, config.shading.gradient_bits));
         Ok(FixedRenderer {
+            gradients,
             volume,
             widths,
             table,
@@ -157,16 +159,20 @@ impl<'a> FixedRenderer<'a> {
         )
     }
 
-    /// The classified sample at a position: interpolation then table lookup.
+    /// The classified (and, when shading, shaded) sample at a position of a ray.
     #[inline(always)]
-    pub fn classify(&self, pos: [i64; 3]) -> [u16; 4] {
-        let density = interpolate(
-            self.volume,
-            pos,
-            self.widths.position_frac_bits,
-            self.widths.weight_bits,
-        );
-        self.table.lookup(density)
+    pub fn classify(&self, pos: [i64; 3], ray: &FixedRay) -> [u16; 4] {
+        let (pf, wb) = (self.widths.position_frac_bits, self.widths.weight_bits);
+        let density = interpolate(self.volume, pos, pf, wb);
+        let rgba = self.table.lookup(density);
+        match &self.gradients {
+            Some(gradients) if rgba[3] != 0 => {
+                let n = Neighbourhood::new(self.volume.dims, pos, pf, wb);
+                let g = [0, 1, 2].map(|c| n.weighted_sum(|i| gradients.at(i)[c] as i64));
+                phong_fixed(rgba, g, ray.light, (1u32 << self.widths.lut_bits) - 1)
+            }
+            _ => rgba,
+        }
     }
 
     /// Marches one ray: sample or leap at each position, until the last position or ERT.
@@ -185,7 +191,7 @@ impl<'a> FixedRenderer<'a> {
             match skipper.decide(pos, ray) {
                 Action::Sample => {
                     record.samples += 1;
-                    let terminated = self.compositor.composite(&mut acc, self.classify(pos));
+                    let terminated = self.compositor.composite(&mut acc, self.classify(pos, ray));
                     k += 1;
                     if terminated {
                         record.terminated_early = k < n;

@@ -14,6 +14,7 @@ use super::Widths;
 use crate::camera::Ray;
 use crate::error::{Error, Result};
 use crate::render::{clip_to_box, sample_range};
+use crate::shading::LIGHT_FRAC_BITS;
 use crate::skip::{ray_reciprocals, Reciprocal, ReciprocalRounding};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -27,6 +28,9 @@ pub struct FixedRay {
     pub samples: u32,
     /// Grid index k (t = k·S) of the first sample, for reporting.
     pub first_k: i64,
+    /// The ray direction for the headlight, rounded to nearest with
+    /// `shading::LIGHT_FRAC_BITS` fraction bits.
+    pub light: [i32; 3],
 }
 
 /// Checks that the widths can represent positions inside this volume and increments at this
@@ -63,12 +67,15 @@ pub fn setup_ray(ray: &Ray, dims: [usize; 3], spacing: f32, widths: &Widths) -> 
         v << inc_shift
     });
     let reciprocals = ray_reciprocals(step, &widths.skip(), ReciprocalRounding::Down);
+    let light_scale = (1u32 << LIGHT_FRAC_BITS) as f32;
+    let light = [0, 1, 2].map(|a| (ray.dir[a] * light_scale).round() as i32);
     let miss = FixedRay {
         start: [0; 3],
         step,
         reciprocals,
         samples: 0,
         first_k: 0,
+        light,
     };
     let Some((t_enter, t_exit)) = clip_to_box(ray, dims) else {
         return miss;
@@ -110,6 +117,7 @@ pub fn setup_ray(ray: &Ray, dims: [usize; 3], spacing: f32, widths: &Widths) -> 
         reciprocals,
         samples: (k_hi - k_lo + 1) as u32,
         first_k: first + k_lo,
+        light,
     }
 }
 

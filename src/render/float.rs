@@ -16,14 +16,9 @@ use rayon::prelude::*;
 use super::{clip_to_box, sample_range, Frame, RayRecord, RenderSettings};
 use crate::camera::{Camera, Ray};
 use crate::error::Result;
+use crate::shading::{phong_float, voxel_gradient};
 use crate::transfer::{correct_opacity, TransferFunction};
 use crate::volume::Volume;
-
-/// Phong parameters of the single headlight (documented in docs/model.md).
-const AMBIENT: f32 = 0.3;
-const DIFFUSE: f32 = 0.7;
-const SPECULAR: f32 = 0.3;
-const SHININESS: i32 = 16;
 
 /// Everything a ray needs, prepared once per frame.
 pub struct FloatRenderer<'a> {
@@ -162,29 +157,38 @@ impl<'a> FloatRenderer<'a> {
         lerp(lerp(c00, c10, frac[1]), lerp(c01, c11, frac[1]), frac[2])
     }
 
-    /// (diffuse factor, specular term) for a headlight along the ray.
+    /// (diffuse factor, specular term): the per-voxel gradients of the 8 neighbours,
+    /// interpolated with the sample's weights (see `shading`).
     fn phong(&self, p: Vec3A, dir: Vec3A) -> (f32, f32) {
-        let e = |axis: usize| {
-            let mut o = Vec3A::ZERO;
-            o[axis] = 1.0;
-            o
-        };
-        let g = Vec3A::new(
-            self.interpolate(p + e(0)) - self.interpolate(p - e(0)),
-            self.interpolate(p + e(1)) - self.interpolate(p - e(1)),
-            self.interpolate(p + e(2)) - self.interpolate(p - e(2)),
-        ) * 0.5;
-        let len = g.length();
-        if len < 1e-3 {
-            // No defined surface: lit as if facing the light.
-            return (AMBIENT + DIFFUSE, SPECULAR);
+        let d = self.volume.dims;
+        let mut base = [0usize; 3];
+        let mut frac = [0f32; 3];
+        for axis in 0..3 {
+            let x = p[axis].clamp(0.0, (d[axis] - 1) as f32);
+            base[axis] = (x as usize).min(d[axis] - 2);
+            frac[axis] = x - base[axis] as f32;
         }
-        // Two-sided: the headlight is both light and view direction, so N·L = N·H.
-        let n_dot_l = (g.dot(dir) / len).abs();
-        (
-            AMBIENT + DIFFUSE * n_dot_l,
-            SPECULAR * n_dot_l.powi(SHININESS),
-        )
+        let mut g = Vec3A::ZERO;
+        for corner in 0..8 {
+            let offset = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
+            let weight: f32 = (0..3)
+                .map(|a| {
+                    if offset[a] == 1 {
+                        frac[a]
+                    } else {
+                        1.0 - frac[a]
+                    }
+                })
+                .product();
+            let v = voxel_gradient(
+                self.volume,
+                base[0] + offset[0],
+                base[1] + offset[1],
+                base[2] + offset[2],
+            );
+            g += weight * Vec3A::from_array(v);
+        }
+        phong_float(g, dir)
     }
 }
 
