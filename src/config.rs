@@ -19,6 +19,7 @@ pub const DEFAULT_NAME: &str = "configs/hardware/vizard2.toml";
 pub struct HardwareConfig {
     pub clock: ClockConfig,
     pub ray: RayConfig,
+    pub ray_queue: RayQueueConfig,
     pub skip: SkipConfig,
     pub occupancy: OccupancyConfig,
     pub interpolation: InterpolationConfig,
@@ -32,6 +33,28 @@ pub struct HardwareConfig {
 pub struct ClockConfig {
     /// The published cost of one step (sample or leap) of the functional model, in ns.
     pub step_time_ns: f64,
+    /// Clock of the cycle-accurate pipeline, in MHz (frame rate = f / cycles).
+    pub frequency_mhz: f64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RayQueueConfig {
+    /// Rays in flight (R): each has one slot; a ray is busy while its update is in the skip unit.
+    pub rays: usize,
+    /// Which ready ray issues: "round-robin" or "oldest-first".
+    pub selection: RaySelection,
+    /// Pixel order: tiles of `tile = [w, h]` pixels so neighbouring rays travel together.
+    pub tile: [u32; 2],
+    /// Rays the ray-setup unit produces per cycle at most (pipelined setup).
+    pub setups_per_cycle: u32,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RaySelection {
+    RoundRobin,
+    OldestFirst,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -54,6 +77,8 @@ pub struct SkipConfig {
     pub reciprocal_bits: u32,
     /// Fraction bits kept of the distance to the sub-cube boundary (truncated).
     pub distance_frac_bits: u32,
+    /// Cycles from issuing a step to its new position being back in the ray queue (published: 8).
+    pub latency: u32,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -99,6 +124,15 @@ pub struct CompositingConfig {
     pub ert: bool,
     /// Accumulated opacity at which a ray terminates.
     pub ert_threshold: f64,
+    /// Samples the compositing (reorder) buffer holds; full = back-pressure to the ray queue.
+    pub buffer_capacity: usize,
+    /// Cycles from an assembled sample entering interpolation to its compositing
+    /// (interpolation, classification, shading, compositing stages).
+    pub stage_latency: u32,
+    /// Cycles from the compositing stage detecting termination to the ray queue knowing it.
+    pub ert_feedback_latency: u32,
+    /// Stop with an error when no unit makes progress for this many cycles.
+    pub watchdog_cycles: u64,
 }
 
 impl HardwareConfig {

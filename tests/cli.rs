@@ -264,7 +264,11 @@ fn precision_sweep_writes_tables_and_plots_and_skip_widths_never_change_the_imag
 #[test]
 fn occupancy_reports_the_published_storage_and_sram_fit() {
     let out = vizsim(&["occupancy", "phantom:jet:64", "--json"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let sizes = report["sizes"].as_array().unwrap();
     // Published storage for 64^3: 32 Kbit at 2^3 ... 8 bit at 32^3.
@@ -272,7 +276,10 @@ fn occupancy_reports_the_published_storage_and_sram_fit() {
         .iter()
         .map(|r| (r["subcube"].as_u64().unwrap(), r["bits"].as_u64().unwrap()))
         .collect();
-    assert_eq!(bits, vec![(2, 32768), (4, 4096), (8, 512), (16, 64), (32, 8), (64, 1)]);
+    assert_eq!(
+        bits,
+        vec![(2, 32768), (4, 4096), (8, 512), (16, 64), (32, 8), (64, 1)]
+    );
     assert!(sizes.iter().all(|r| r["fits_sram"] == true)); // 32 Kbit < 131072
     for r in sizes {
         let (zero, class) = (
@@ -282,7 +289,13 @@ fn occupancy_reports_the_published_storage_and_sram_fit() {
         // A class map hides at least what the '0' map hides (zero is transparent in every preset).
         assert!(class >= zero, "{r}");
     }
-    let small = vizsim(&["occupancy", "phantom:jet:64", "--json", "--set", "occupancy.sram_bits=1000"]);
+    let small = vizsim(&[
+        "occupancy",
+        "phantom:jet:64",
+        "--json",
+        "--set",
+        "occupancy.sram_bits=1000",
+    ]);
     let report: serde_json::Value = serde_json::from_slice(&small.stdout).unwrap();
     assert_eq!(report["sizes"][0]["fits_sram"], false);
     assert_eq!(report["sizes"][2]["fits_sram"], true);

@@ -148,6 +148,18 @@ impl<'a> FixedRenderer<'a> {
         }
     }
 
+    pub fn volume_dims(&self) -> [usize; 3] {
+        self.volume.dims
+    }
+
+    /// The lower corner voxel of the 2×2×2 neighbourhood a sample at `pos` reads: the
+    /// address source of its memory request.
+    pub fn base_voxel(&self, pos: [i64; 3]) -> [usize; 3] {
+        let pf = self.widths.position_frac_bits;
+        let d = self.volume.dims;
+        [0, 1, 2].map(|a| ((pos[a] >> pf) as usize).min(d[a] - 2))
+    }
+
     /// Fixed-point setup of the ray through pixel (px, py).
     pub fn setup(&self, camera: &Camera, px: u32, py: u32) -> FixedRay {
         let ray = camera.voxel_ray(px, py, self.volume.spacing);
@@ -161,7 +173,7 @@ impl<'a> FixedRenderer<'a> {
 
     /// The classified (and, when shading, shaded) sample at a position of a ray.
     #[inline(always)]
-    pub fn classify(&self, pos: [i64; 3], ray: &FixedRay) -> [u16; 4] {
+    pub fn classify(&self, pos: [i64; 3], light: [i32; 3]) -> [u16; 4] {
         let (pf, wb) = (self.widths.position_frac_bits, self.widths.weight_bits);
         let density = interpolate(self.volume, pos, pf, wb);
         let rgba = self.table.lookup(density);
@@ -169,7 +181,7 @@ impl<'a> FixedRenderer<'a> {
             Some(gradients) if rgba[3] != 0 => {
                 let n = Neighbourhood::new(self.volume.dims, pos, pf, wb);
                 let g = [0, 1, 2].map(|c| n.weighted_sum(|i| gradients.at(i)[c] as i64));
-                phong_fixed(rgba, g, ray.light, (1u32 << self.widths.lut_bits) - 1)
+                phong_fixed(rgba, g, light, (1u32 << self.widths.lut_bits) - 1)
             }
             _ => rgba,
         }
@@ -191,7 +203,9 @@ impl<'a> FixedRenderer<'a> {
             match skipper.decide(pos, ray) {
                 Action::Sample => {
                     record.samples += 1;
-                    let terminated = self.compositor.composite(&mut acc, self.classify(pos, ray));
+                    let terminated = self
+                        .compositor
+                        .composite(&mut acc, self.classify(pos, ray.light));
                     k += 1;
                     if terminated {
                         record.terminated_early = k < n;

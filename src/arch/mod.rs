@@ -1,0 +1,9 @@
+//! The cycle-accurate model: one module per hardware unit (brief, section 4), each a struct with
+//! its own state, bounded queues and a per-cycle step; `pipeline` only wires them and runs the
+//! clock. Arithmetic comes from the functional model.
+
+pub mod compositing_buffer;
+pub mod pipeline;
+pub mod ray_queue;
+pub mod skip_unit;
+pub mod voxel_memory;

@@ -1,0 +1,505 @@
+//! The cycle-accurate pipeline: wires the units and runs the clock.
+//!
+//! ```text
+//! ray setup -> ray queue -(issue)-> skip unit (latency L) -> back to the ray queue
+//!                  |  sample                                      ^ ERT feedback (delayed)
+//!                  v                                              |
+//!            voxel memory -> compositing buffer (reorder) -> stages (interpolate, classify,
+//!                                                             shade, composite) -> retire
+//! ```
+//!
+//! **Clocking.** Each cycle the units are stepped back to front (retire first, ray setup last),
+//! so a value a unit produces in cycle t is consumed by its downstream unit in cycle t + 1: the
+//! order of the step calls cannot change the outcome. **Dead time.** When a cycle makes no
+//! progress anywhere, nothing can change until the next timed event (a skip result, a memory
+//! completion, a stage output, an ERT feedback), so the clock jumps there, adding the skipped
+//! cycles to the same stall cause; `tests/cycle.rs` checks this equals ticking.
+//!
+//! **Arithmetic is not written twice**: ray setup, the skip decision, interpolation,
+//! classification, shading and compositing are the functional model's own functions (through
+//! `FixedRenderer`), so the image equals the functional image bit for bit by construction.
+
+use std::collections::{HashMap, VecDeque};
+
+use super::compositing_buffer::CompositingBuffer;
+use super::ray_queue::{RayQueue, RaySlot};
+use super::skip_unit::{PositionUpdate, SkipUnit};
+use super::voxel_memory::{SampleRequest, VoxelMemory};
+use crate::camera::Camera;
+use crate::config::HardwareConfig;
+use crate::error::{Error, Result};
+use crate::functional::arith::Accumulator;
+use crate::functional::leaping::{Action, SpaceSkipper};
+use crate::functional::renderer::FixedRenderer;
+use crate::render::{Frame, RayRecord};
+
+/// Why the ray queue issued nothing in a cycle.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct StallCycles {
+    /// No ray in the queue (setup has not delivered, or the frame is draining).
+    pub ray_queue_empty: u64,
+    /// Every ray in the queue is waiting for its update from the skip unit.
+    pub skip_unit_busy: u64,
+    /// The selected sample's address FIFOs were full.
+    pub memory: u64,
+    /// The compositing buffer had no free entry.
+    pub compositing_buffer_full: u64,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct CycleStats {
+    /// Cycles from the first ray setup to the last pixel written.
+    pub cycles: u64,
+    /// Issue slots used: samples + leaps (one per cycle at most).
+    pub steps: u64,
+    pub samples: u64,
+    pub leaps: u64,
+    /// Samples composited (in ray order).
+    pub composited: u64,
+    /// Samples issued after their ray reached the ERT threshold, discarded at compositing.
+    pub discarded_after_ert: u64,
+    pub rays: u64,
+    pub rays_terminated_early: u64,
+    pub stall_cycles: StallCycles,
+    /// Cycles spent at each ray-queue occupancy 0..=R.
+    pub ray_queue_occupancy: Vec<u64>,
+    /// Cycles spent at each compositing-buffer fill level 0..=capacity.
+    pub compositing_buffer_occupancy: Vec<u64>,
+    /// Cycles the clock jumped over because nothing could happen (equal results to ticking).
+    pub skipped_cycles: u64,
+}
+
+pub struct CycleResult {
+    pub frame: Frame,
+    pub stats: CycleStats,
+}
+
+/// Compositing-side state of one ray.
+#[derive(Clone, Copy, Default)]
+struct RayProgress {
+    acc: Accumulator,
+    /// Headlight direction for shading (from ray setup).
+    light: [i32; 3],
+    /// Sample positions of the ray.
+    positions: u32,
+    /// Reached the ERT threshold at the compositing stage.
+    terminated: bool,
+    /// Samples composited or discarded.
+    done: u32,
+    /// Samples the ray queue issued in total, known once the ray left the queue.
+    issued_total: Option<u32>,
+    retired: bool,
+}
+
+/// A sample inside the interpolation..compositing stages.
+#[derive(Clone, Copy)]
+struct StagedSample {
+    due: u64,
+    ray_id: usize,
+    k: u64,
+    pos: [i64; 3],
+}
+
+/// Simulates one frame. `skipper` is the space-skipping strategy (shared with the functional
+/// model), `memory` the voxel memory model. `skip_dead_cycles`: jump over cycles in which
+/// nothing can happen (same results as ticking every cycle, only faster).
+pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
+    renderer: &FixedRenderer,
+    camera: &Camera,
+    skipper: &S,
+    memory: &mut M,
+    config: &HardwareConfig,
+    skip_dead_cycles: bool,
+) -> Result<CycleResult> {
+    let (w, h) = (camera.width, camera.height);
+    let ray_count = (w * h) as usize;
+    let order = tile_order(w, h, config.ray_queue.tile);
+    let mut pixels = vec![[0u8; 4]; ray_count];
+    let mut records = vec![RayRecord::default(); ray_count];
+    let mut progress = vec![RayProgress::default(); ray_count];
+    let mut written = vec![false; ray_count];
+
+    let mut queue = RayQueue::new(config.ray_queue.rays, config.ray_queue.selection);
+    let mut skip = SkipUnit::new(config.skip.latency);
+    let mut buffer = CompositingBuffer::new(config.compositing.buffer_capacity);
+    let mut stages: VecDeque<StagedSample> = VecDeque::new();
+    let mut feedback: VecDeque<(u64, usize)> = VecDeque::new();
+    let mut tags: HashMap<u64, (usize, u64, [i64; 3])> = HashMap::new();
+    let mut completed_tags = Vec::new();
+    let mut next_tag = 0u64;
+    let mut next_setup = 0usize;
+    let mut retired = 0usize;
+
+    let stage_latency = config.compositing.stage_latency as u64;
+    let feedback_latency = config.compositing.ert_feedback_latency as u64;
+    let compositor = &renderer.compositor;
+    let mut stats = CycleStats {
+        rays: ray_count as u64,
+        ray_queue_occupancy: vec![0; config.ray_queue.rays + 1],
+        compositing_buffer_occupancy: vec![0; config.compositing.buffer_capacity + 1],
+        ..Default::default()
+    };
+    let mut last_progress = 0u64;
+    let mut now = 0u64;
+
+    // Retires a ray whose every issued sample is composited or discarded.
+    let try_retire = |ray_id: usize,
+                      progress: &mut [RayProgress],
+                      pixels: &mut [[u8; 4]],
+                      written: &mut [bool],
+                      retired: &mut usize| {
+        let p = &mut progress[ray_id];
+        if !p.retired && p.issued_total == Some(p.done) {
+            p.retired = true;
+            pixels[ray_id] = compositor.finish(&p.acc);
+            debug_assert!(!written[ray_id], "pixel {ray_id} written twice");
+            written[ray_id] = true;
+            *retired += 1;
+        }
+    };
+
+    while retired < ray_count {
+        let mut moved = false;
+
+        // Compositing stages: the sample due now is composited, or discarded after ERT.
+        while let Some(s) = stages.front().copied() {
+            if s.due > now {
+                break;
+            }
+            stages.pop_front();
+            moved = true;
+            let p = &mut progress[s.ray_id];
+            if p.terminated {
+                stats.discarded_after_ert += 1;
+            } else {
+                let rgba = renderer.classify(s.pos, p.light);
+                stats.composited += 1;
+                if compositor.composite(&mut p.acc, rgba) {
+                    p.terminated = true;
+                    // As in the functional model: early if positions remained after this one.
+                    records[s.ray_id].terminated_early = s.k + 1 < p.positions as u64;
+                    feedback.push_back((now + feedback_latency, s.ray_id));
+                }
+            }
+            p.done += 1;
+            try_retire(
+                s.ray_id,
+                &mut progress,
+                &mut pixels,
+                &mut written,
+                &mut retired,
+            );
+        }
+
+        // Compositing buffer: release one sample, oldest of its ray, into the stages.
+        if let Some(s) = buffer.release() {
+            stages.push_back(StagedSample {
+                due: now + stage_latency,
+                ray_id: s.ray_id,
+                k: s.k,
+                pos: s.pos,
+            });
+            moved = true;
+        }
+
+        // Voxel memory: samples whose words are all in.
+        completed_tags.clear();
+        memory.step(now, &mut completed_tags);
+        for tag in &completed_tags {
+            let (ray_id, k, _) = tags.remove(tag).expect("memory completed an unknown tag");
+            buffer.arrive(ray_id, k);
+            moved = true;
+        }
+
+        // ERT feedback reaching the ray queue.
+        while let Some(&(due, ray_id)) = feedback.front() {
+            if due > now {
+                break;
+            }
+            feedback.pop_front();
+            queue.terminate(ray_id);
+            moved = true;
+        }
+
+        // Skip unit results back in the ray queue.
+        if let Some(update) = skip.pop_ready(now) {
+            if let Some(slot) = queue.slots[update.slot].as_mut() {
+                slot.pos = update.pos;
+                slot.k = update.k;
+                slot.busy = false;
+            }
+            moved = true;
+        }
+        // Rays that have issued their last position (or learnt of ERT) leave the queue.
+        for i in 0..queue.slots.len() {
+            let leaving = queue.slots[i]
+                .as_ref()
+                .is_some_and(|s| !s.busy && s.finished());
+            if leaving {
+                let slot = queue.slots[i].take().expect("slot present");
+                let p = &mut progress[slot.ray_id];
+                p.issued_total = Some(slot.samples_issued);
+                try_retire(
+                    slot.ray_id,
+                    &mut progress,
+                    &mut pixels,
+                    &mut written,
+                    &mut retired,
+                );
+                moved = true;
+            }
+        }
+
+        // Issue: one step of one ready ray.
+        let stall = issue(
+            renderer,
+            &mut queue,
+            &mut skip,
+            &mut buffer,
+            memory,
+            skipper,
+            &mut tags,
+            &mut next_tag,
+            &mut records,
+            &mut stats,
+            now,
+        );
+        moved |= stall.is_none();
+
+        // Ray setup: fill free slots; rays that miss the volume write the background at once.
+        for _ in 0..config.ray_queue.setups_per_cycle {
+            if next_setup >= ray_count {
+                break;
+            }
+            let Some(free) = queue.free_slot() else { break };
+            let ray_id = order[next_setup];
+            next_setup += 1;
+            moved = true;
+            let (px, py) = (ray_id as u32 % w, ray_id as u32 / w);
+            let ray = renderer.setup(camera, px, py);
+            records[ray_id] = RayRecord {
+                hit: ray.samples > 0,
+                first_sample: ray.first_k,
+                end_sample: ray.first_k + ray.samples as i64,
+                ..RayRecord::default()
+            };
+            progress[ray_id].light = ray.light;
+            progress[ray_id].positions = ray.samples;
+            if ray.samples == 0 {
+                progress[ray_id].issued_total = Some(0);
+                try_retire(
+                    ray_id,
+                    &mut progress,
+                    &mut pixels,
+                    &mut written,
+                    &mut retired,
+                );
+                continue;
+            }
+            queue.slots[free] = Some(RaySlot {
+                ray_id,
+                pos: ray.start,
+                ray,
+                k: 0,
+                busy: false,
+                terminated: false,
+                admitted: now,
+                samples_issued: 0,
+            });
+        }
+
+        // Account this cycle, then jump over cycles in which nothing can happen.
+        let mut span = 1u64;
+        if moved {
+            last_progress = now;
+        } else {
+            let next = [
+                skip.next_event(),
+                memory.next_event(now),
+                stages.front().map(|s| s.due),
+                feedback.front().map(|&(due, _)| due),
+            ]
+            .into_iter()
+            .flatten()
+            .min();
+            match next {
+                Some(t) if skip_dead_cycles && t > now + 1 => span = t - now,
+                Some(_) => {}
+                None if retired < ray_count => {
+                    return Err(deadlock(
+                        now,
+                        &queue,
+                        &buffer,
+                        &stages,
+                        memory,
+                        "nothing is pending",
+                    ))
+                }
+                None => {}
+            }
+            if now + span - last_progress > config.compositing.watchdog_cycles {
+                return Err(deadlock(now, &queue, &buffer, &stages, memory, "watchdog"));
+            }
+        }
+        if let Some(cause) = stall {
+            match cause {
+                Stall::RayQueueEmpty => stats.stall_cycles.ray_queue_empty += span,
+                Stall::SkipBusy => stats.stall_cycles.skip_unit_busy += span,
+                Stall::Memory => stats.stall_cycles.memory += span,
+                Stall::BufferFull => stats.stall_cycles.compositing_buffer_full += span,
+            }
+        }
+        stats.ray_queue_occupancy[queue.occupancy()] += span;
+        stats.compositing_buffer_occupancy[buffer.len()] += span;
+        stats.skipped_cycles += span - 1;
+        now += span;
+    }
+    stats.cycles = now;
+    stats.rays_terminated_early = records.iter().filter(|r| r.terminated_early).count() as u64;
+
+    // Conservation (brief, section 5 (e)): every issued sample composited once or discarded.
+    if stats.samples != stats.composited + stats.discarded_after_ert || !written.iter().all(|&x| x)
+    {
+        return Err(Error::Invalid(format!(
+            "internal invariant broken: {} samples issued, {} composited, {} discarded, {} of {} pixels written",
+            stats.samples,
+            stats.composited,
+            stats.discarded_after_ert,
+            written.iter().filter(|&&x| x).count(),
+            ray_count
+        )));
+    }
+    Ok(CycleResult {
+        frame: Frame {
+            width: w,
+            height: h,
+            pixels,
+            rays: records,
+        },
+        stats,
+    })
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Stall {
+    RayQueueEmpty,
+    SkipBusy,
+    Memory,
+    BufferFull,
+}
+
+/// The issue stage: selects one ready ray and issues its step. Returns why nothing issued.
+#[allow(clippy::too_many_arguments)]
+fn issue<S: SpaceSkipper, M: VoxelMemory>(
+    renderer: &FixedRenderer,
+    queue: &mut RayQueue,
+    skip: &mut SkipUnit,
+    buffer: &mut CompositingBuffer,
+    memory: &mut M,
+    skipper: &S,
+    tags: &mut HashMap<u64, (usize, u64, [i64; 3])>,
+    next_tag: &mut u64,
+    records: &mut [RayRecord],
+    stats: &mut CycleStats,
+    now: u64,
+) -> Option<Stall> {
+    if queue.occupancy() == 0 {
+        return Some(Stall::RayQueueEmpty);
+    }
+    let Some(index) = queue.select(|_| true) else {
+        return Some(Stall::SkipBusy);
+    };
+    let slot = queue.slots[index].as_mut().expect("selected slot");
+    let remaining = slot.ray.samples as u64 - slot.k;
+    let (new_k, new_pos) = match skipper.decide(slot.pos, &slot.ray) {
+        Action::Sample => {
+            if buffer.is_full() {
+                return Some(Stall::BufferFull);
+            }
+            let request = SampleRequest {
+                tag: *next_tag,
+                base: renderer.base_voxel(slot.pos),
+            };
+            if !memory.can_accept(&request) {
+                return Some(Stall::Memory);
+            }
+            *next_tag += 1;
+            memory.push(request, now);
+            tags.insert(request.tag, (slot.ray_id, slot.k, slot.pos));
+            buffer.reserve(slot.ray_id, slot.k, slot.pos);
+            slot.samples_issued += 1;
+            records[slot.ray_id].samples += 1;
+            stats.samples += 1;
+            (slot.k + 1, add_steps(slot.pos, slot.ray.step, 1))
+        }
+        Action::Leap(n) => {
+            let n = n.min(remaining);
+            records[slot.ray_id].leaps += 1;
+            records[slot.ray_id].skipped += n as u32;
+            stats.leaps += 1;
+            (slot.k + n, add_steps(slot.pos, slot.ray.step, n))
+        }
+    };
+    stats.steps += 1;
+    slot.busy = true;
+    skip.push(
+        PositionUpdate {
+            slot: index,
+            pos: new_pos,
+            k: new_k,
+        },
+        now,
+    );
+    queue.issued_from(index);
+    None
+}
+
+#[inline]
+fn add_steps(pos: [i64; 3], step: [i64; 3], n: u64) -> [i64; 3] {
+    [0, 1, 2].map(|a| pos[a] + n as i64 * step[a])
+}
+
+fn deadlock<M: VoxelMemory>(
+    now: u64,
+    queue: &RayQueue,
+    buffer: &CompositingBuffer,
+    stages: &VecDeque<StagedSample>,
+    memory: &M,
+    why: &str,
+) -> Error {
+    let slots: Vec<String> = queue
+        .slots
+        .iter()
+        .flatten()
+        .map(|s| {
+            format!(
+                "ray {} k {} busy {} terminated {}",
+                s.ray_id, s.k, s.busy, s.terminated
+            )
+        })
+        .collect();
+    Error::Invalid(format!(
+        "pipeline deadlock at cycle {now} ({why}): ray queue [{}]; compositing buffer {} entries; \
+         {} samples in the stages; memory {}",
+        slots.join("; "),
+        buffer.len(),
+        stages.len(),
+        memory.stats_json()
+    ))
+}
+
+/// Pixel order: tiles of `tile` pixels, row-major inside a tile and across tiles.
+pub fn tile_order(width: u32, height: u32, tile: [u32; 2]) -> Vec<usize> {
+    let [tw, th] = tile;
+    let mut order = Vec::with_capacity((width * height) as usize);
+    for ty in (0..height).step_by(th as usize) {
+        for tx in (0..width).step_by(tw as usize) {
+            for y in ty..(ty + th).min(height) {
+                for x in tx..(tx + tw).min(width) {
+                    order.push((y * width + x) as usize);
+                }
+            }
+        }
+    }
+    order
+}

@@ -1,0 +1,86 @@
+//! The ray queue: R slots of active rays. Each cycle it selects one ready ray (not busy in the
+//! skip unit, not terminated) by the configured policy and issues its step. It learns of early
+//! ray termination only through the delayed feedback from the compositing stage.
+
+use crate::config::RaySelection;
+use crate::functional::setup::FixedRay;
+
+#[derive(Clone, Debug)]
+pub struct RaySlot {
+    /// Pixel index of the ray (row-major).
+    pub ray_id: usize,
+    pub ray: FixedRay,
+    pub pos: [i64; 3],
+    pub k: u64,
+    /// Its position update is in the skip unit.
+    pub busy: bool,
+    /// The ERT feedback arrived: issue nothing more.
+    pub terminated: bool,
+    /// Cycle the ray entered the queue (for oldest-first selection).
+    pub admitted: u64,
+    /// Samples issued so far (the compositing side needs the total to retire the ray).
+    pub samples_issued: u32,
+}
+
+impl RaySlot {
+    pub fn finished(&self) -> bool {
+        self.terminated || self.k >= self.ray.samples as u64
+    }
+}
+
+pub struct RayQueue {
+    pub slots: Vec<Option<RaySlot>>,
+    selection: RaySelection,
+    next_round_robin: usize,
+}
+
+impl RayQueue {
+    pub fn new(rays: usize, selection: RaySelection) -> RayQueue {
+        RayQueue {
+            slots: vec![None; rays],
+            selection,
+            next_round_robin: 0,
+        }
+    }
+
+    pub fn free_slot(&self) -> Option<usize> {
+        self.slots.iter().position(Option::is_none)
+    }
+
+    pub fn occupancy(&self) -> usize {
+        self.slots.iter().filter(|s| s.is_some()).count()
+    }
+
+    /// The slot to issue from this cycle among those `eligible` accepts (ready, not busy, not
+    /// finished), by the configured policy. Round-robin advances only when a slot issues.
+    pub fn select(&self, eligible: impl Fn(&RaySlot) -> bool) -> Option<usize> {
+        let n = self.slots.len();
+        let ready = |i: usize| {
+            self.slots[i]
+                .as_ref()
+                .is_some_and(|s| !s.busy && !s.finished() && eligible(s))
+        };
+        match self.selection {
+            RaySelection::RoundRobin => (0..n)
+                .map(|d| (self.next_round_robin + d) % n)
+                .find(|&i| ready(i)),
+            RaySelection::OldestFirst => (0..n)
+                .filter(|&i| ready(i))
+                .min_by_key(|&i| self.slots[i].as_ref().map(|s| (s.admitted, s.ray_id))),
+        }
+    }
+
+    pub fn issued_from(&mut self, slot: usize) {
+        self.next_round_robin = (slot + 1) % self.slots.len();
+    }
+
+    /// Marks the ray terminated if it still holds a slot (the feedback may arrive after the
+    /// ray has already issued its last position and left).
+    pub fn terminate(&mut self, ray_id: usize) {
+        for s in self.slots.iter_mut().flatten() {
+            if s.ray_id == ray_id {
+                s.terminated = true;
+            }
+        }
+    }
+}

@@ -1,0 +1,77 @@
+//! Voxel memory as seen by the pipeline: it takes a sample's neighbourhood request and, some
+//! cycles later, reports the sample's words complete. The SDRAM model (modules, banks, FIFOs,
+//! overtaking) is one implementation; `IdealMemory` (a fixed latency, unlimited bandwidth) is
+//! the other, used for closed-form checks and as the "memory is free" bound.
+
+/// A sample's memory request: its tag and the lower corner of its 2×2×2 neighbourhood.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SampleRequest {
+    pub tag: u64,
+    pub base: [usize; 3],
+}
+
+pub trait VoxelMemory {
+    /// Whether the request can enter this cycle (every address FIFO it needs has room).
+    fn can_accept(&self, request: &SampleRequest) -> bool;
+    /// Enters a request at cycle `now` (the caller checked `can_accept`).
+    fn push(&mut self, request: SampleRequest, now: u64);
+    /// Advances one cycle and appends the tags of samples whose words are all in by `now`.
+    fn step(&mut self, now: u64, completed: &mut Vec<u64>);
+    /// Whether nothing is pending.
+    fn is_idle(&self) -> bool;
+    /// The earliest cycle after `now` at which stepping could change anything (None = never
+    /// on its own); the pipeline jumps over the cycles between.
+    fn next_event(&self, now: u64) -> Option<u64>;
+    /// Statistics as JSON (model-specific fields, documented by each model).
+    fn stats_json(&self) -> serde_json::Value;
+}
+
+/// Every request completes exactly `latency` cycles after it entered.
+pub struct IdealMemory {
+    latency: u64,
+    pending: std::collections::VecDeque<(u64, u64)>,
+    pub requests: u64,
+}
+
+impl IdealMemory {
+    pub fn new(latency: u64) -> IdealMemory {
+        IdealMemory {
+            latency,
+            pending: Default::default(),
+            requests: 0,
+        }
+    }
+}
+
+impl VoxelMemory for IdealMemory {
+    fn can_accept(&self, _: &SampleRequest) -> bool {
+        true
+    }
+
+    fn push(&mut self, request: SampleRequest, now: u64) {
+        self.pending.push_back((now + self.latency, request.tag));
+        self.requests += 1;
+    }
+
+    fn step(&mut self, now: u64, completed: &mut Vec<u64>) {
+        while let Some(&(due, tag)) = self.pending.front() {
+            if due > now {
+                break;
+            }
+            self.pending.pop_front();
+            completed.push(tag);
+        }
+    }
+
+    fn is_idle(&self) -> bool {
+        self.pending.is_empty()
+    }
+
+    fn next_event(&self, _: u64) -> Option<u64> {
+        self.pending.front().map(|&(due, _)| due)
+    }
+
+    fn stats_json(&self) -> serde_json::Value {
+        serde_json::json!({ "model": "ideal", "latency_cycles": self.latency, "requests": self.requests })
+    }
+}

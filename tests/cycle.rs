@@ -1,0 +1,221 @@
+//! The cycle-accurate pipeline against its golden model (the functional fixed-point model) and
+//! against closed forms.
+
+mod common;
+
+use common::{camera, views};
+use vizsim::arch::pipeline::{simulate, CycleResult};
+use vizsim::arch::voxel_memory::IdealMemory;
+use vizsim::camera::{Projection, View};
+use vizsim::config::HardwareConfig;
+use vizsim::functional::leaping::{NoSkipping, OccupancyLeaping};
+use vizsim::functional::renderer::{FixedRenderer, Leaping};
+use vizsim::occupancy::OccupancyKind;
+use vizsim::render::RenderSettings;
+use vizsim::transfer::TransferFunction;
+use vizsim::volume::Volume;
+
+fn ball_tf() -> TransferFunction {
+    common::tf(&[
+        (0.0, [0.0; 4]),
+        (60.0, [0.0; 4]),
+        (90.0, [0.2, 0.5, 1.0, 0.3]),
+        (200.0, [1.0, 0.8, 0.2, 0.9]),
+    ])
+}
+
+fn config() -> HardwareConfig {
+    let mut c = HardwareConfig::default_config();
+    c.occupancy.sram_bits = 1 << 24;
+    c
+}
+
+/// Runs the cycle model with the ideal memory (latency `mem_latency`).
+fn run(
+    renderer: &FixedRenderer,
+    cam: &vizsim::camera::Camera,
+    config: &HardwareConfig,
+    mem_latency: u64,
+    skip_dead: bool,
+) -> CycleResult {
+    let mut memory = IdealMemory::new(mem_latency);
+    match (&renderer.map, renderer.leaping) {
+        (Some(map), Leaping::Occupancy { hierarchy, .. }) => {
+            let skipper = OccupancyLeaping::new(map, hierarchy, renderer.widths.skip());
+            simulate(renderer, cam, &skipper, &mut memory, config, skip_dead).unwrap()
+        }
+        _ => simulate(renderer, cam, &NoSkipping, &mut memory, config, skip_dead).unwrap(),
+    }
+}
+
+fn check_against_functional(volume: &Volume, tf: &TransferFunction, size: u32) {
+    let config = config();
+    for (view, projection) in views() {
+        let cam = camera(volume, view, projection, size);
+        for ert in [Some(0.95), None] {
+            let settings = RenderSettings {
+                ert_threshold: ert,
+                ..Default::default()
+            };
+            for leaping in [
+                Leaping::None,
+                Leaping::Occupancy {
+                    subcube: 4,
+                    hierarchy: false,
+                    kind: OccupancyKind::Class,
+                },
+                Leaping::Occupancy {
+                    subcube: 8,
+                    hierarchy: true,
+                    kind: OccupancyKind::Zero,
+                },
+            ] {
+                let renderer = FixedRenderer::new(volume, tf, &settings, &config, leaping).unwrap();
+                let functional = renderer.render(&cam);
+                let cycle = run(&renderer, &cam, &config, 5, true);
+                let what = format!("{view:?} {projection:?} ert {ert:?} {leaping:?}");
+                assert!(
+                    cycle.frame.pixels == functional.pixels,
+                    "image differs: {what}"
+                );
+                let f = functional.stats();
+                let s = &cycle.stats;
+                // The same samples are composited; the cycle model may issue more (after ERT,
+                // before the feedback arrives), which it discards.
+                assert_eq!(s.composited, f.samples, "{what}");
+                assert_eq!(s.samples, s.composited + s.discarded_after_ert, "{what}");
+                assert_eq!(s.rays_terminated_early, f.rays_terminated_early, "{what}");
+                if ert.is_none() {
+                    assert_eq!(s.steps, f.steps(), "{what}");
+                    assert_eq!(s.discarded_after_ert, 0);
+                }
+                assert!(s.cycles >= s.steps, "{what}: one issue per clock at most");
+            }
+        }
+    }
+}
+
+#[test]
+fn cycle_image_equals_functional_image_on_a_ball() {
+    check_against_functional(&common::ball(40), &ball_tf(), 32);
+}
+
+#[test]
+fn cycle_image_equals_functional_image_with_shading() {
+    let volume = common::ball(32);
+    let tf = ball_tf();
+    let config = config();
+    let settings = RenderSettings {
+        shading: true,
+        ..Default::default()
+    };
+    let cam = camera(&volume, View::Orbit { k: 11, n: 72 }, Projection::Persp, 32);
+    let renderer = FixedRenderer::new(&volume, &tf, &settings, &config, Leaping::None).unwrap();
+    assert!(run(&renderer, &cam, &config, 3, true).frame.pixels == renderer.render(&cam).pixels);
+}
+
+#[test]
+fn one_ray_in_flight_pays_the_skip_latency_and_eight_hide_it() {
+    let volume = common::uniform([16, 16, 16], 100);
+    let tf = common::tf(&[(0.0, [1.0, 1.0, 1.0, 0.01])]);
+    let settings = RenderSettings {
+        ert_threshold: None,
+        ..Default::default()
+    };
+    let cam = camera(&volume, View::Front, Projection::Ortho, 8);
+    let cycles_per_step = |rays: usize| {
+        let mut config = config();
+        config.ray_queue.rays = rays;
+        let renderer = FixedRenderer::new(&volume, &tf, &settings, &config, Leaping::None).unwrap();
+        let r = run(&renderer, &cam, &config, 1, true);
+        r.stats.cycles as f64 / r.stats.steps as f64
+    };
+    let (one, eight, sixteen) = (cycles_per_step(1), cycles_per_step(8), cycles_per_step(16));
+    eprintln!("cycles per step: R=1 {one:.3}, R=8 {eight:.3}, R=16 {sixteen:.3}");
+    // R = 1: a step every `latency` = 8 cycles (plus a little per-ray setup and drain).
+    assert!((8.0..8.6).contains(&one), "R=1: {one} cycles per step");
+    // R >= 8: about one step per cycle.
+    assert!(
+        eight < 1.2 && sixteen < 1.2,
+        "R=8: {eight}, R=16: {sixteen}"
+    );
+}
+
+#[test]
+fn jumping_over_dead_cycles_equals_ticking() {
+    let volume = common::ball(32);
+    let tf = ball_tf();
+    let mut config = config();
+    config.ray_queue.rays = 3; // plenty of dead cycles
+    let cam = camera(&volume, View::Orbit { k: 4, n: 72 }, Projection::Ortho, 24);
+    let renderer = FixedRenderer::new(
+        &volume,
+        &tf,
+        &RenderSettings::default(),
+        &config,
+        Leaping::Occupancy {
+            subcube: 4,
+            hierarchy: true,
+            kind: OccupancyKind::Class,
+        },
+    )
+    .unwrap();
+    let jumped = run(&renderer, &cam, &config, 20, true);
+    let ticked = run(&renderer, &cam, &config, 20, false);
+    assert!(jumped.stats.skipped_cycles > 0);
+    assert_eq!(ticked.stats.skipped_cycles, 0);
+    let mut a = jumped.stats.clone();
+    a.skipped_cycles = 0;
+    assert_eq!(a, ticked.stats);
+    assert_eq!(jumped.frame.pixels, ticked.frame.pixels);
+}
+
+#[test]
+fn ert_feedback_latency_wastes_issued_samples_that_are_discarded() {
+    let volume = common::uniform([32, 32, 32], 200);
+    let tf = common::tf(&[(0.0, [1.0, 1.0, 1.0, 0.5])]);
+    let cam = camera(&volume, View::Front, Projection::Ortho, 16);
+    let discarded = |latency: u32| {
+        let mut config = config();
+        config.compositing.ert_feedback_latency = latency;
+        config.ray_queue.rays = 2;
+        let renderer = FixedRenderer::new(
+            &volume,
+            &tf,
+            &RenderSettings::default(),
+            &config,
+            Leaping::None,
+        )
+        .unwrap();
+        let r = run(&renderer, &cam, &config, 2, true);
+        assert!(r.frame.pixels == renderer.render(&cam).pixels);
+        r.stats.discarded_after_ert
+    };
+    let (short, long) = (discarded(1), discarded(40));
+    eprintln!("discarded after ERT: feedback 1 cycle {short}, 40 cycles {long}");
+    assert!(long > short, "{long} vs {short}");
+}
+
+#[test]
+fn same_input_same_cycles() {
+    let volume = common::ball(32);
+    let tf = ball_tf();
+    let config = config();
+    let cam = camera(&volume, View::Orbit { k: 9, n: 72 }, Projection::Persp, 24);
+    let renderer = FixedRenderer::new(
+        &volume,
+        &tf,
+        &RenderSettings::default(),
+        &config,
+        Leaping::None,
+    )
+    .unwrap();
+    let a = run(&renderer, &cam, &config, 7, true);
+    let b = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| run(&renderer, &cam, &config, 7, true));
+    assert_eq!(a.stats, b.stats);
+    assert_eq!(a.frame.pixels, b.frame.pixels);
+}
