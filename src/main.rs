@@ -32,6 +32,8 @@ struct Cli {
 enum Command {
     /// Render one frame with the float reference ray caster.
     Render(RenderArgs),
+    /// Simulate one frame clock by clock on the cycle-accurate pipeline.
+    Sim(SimArgs),
     /// Print a dataset's dimensions, spacing, value histogram and occupied percentage.
     Info {
         /// Dataset name, phantom spec or file (see `vizsim info --help`).
@@ -179,6 +181,49 @@ struct RenderArgs {
     hardware: HardwareArgs,
 }
 
+#[derive(Args)]
+struct SimArgs {
+    #[arg(long)]
+    dataset: String,
+    #[command(flatten)]
+    data: DataArgs,
+    #[arg(long, default_value = "class")]
+    tf: String,
+    #[arg(long, default_value = "front")]
+    view: String,
+    #[arg(long, value_enum, default_value = "ortho")]
+    projection: ProjectionArg,
+    #[arg(long, default_value = "256x256")]
+    size: String,
+    #[arg(long, default_value_t = 1.0)]
+    spacing: f32,
+    /// Disable early ray termination.
+    #[arg(long)]
+    no_ert: bool,
+    #[arg(long)]
+    shading: bool,
+    /// Voxel memory model: `ideal` (fixed latency, unlimited bandwidth).
+    #[arg(long, value_enum, default_value = "ideal")]
+    memory: MemoryArg,
+    /// Latency of the ideal memory, in cycles.
+    #[arg(long, default_value_t = 6)]
+    ideal_latency: u64,
+    #[command(flatten)]
+    hardware: HardwareArgs,
+    /// Output PNG.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Statistics as JSON.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+enum MemoryArg {
+    Ideal,
+}
+
 #[derive(Args, Clone)]
 struct HardwareArgs {
     /// Hardware configuration TOML (default: the embedded configs/hardware/vizard2.toml).
@@ -275,6 +320,7 @@ fn run(cli: Cli) -> Result<()> {
     }
     match cli.command {
         Command::Render(args) => render(args),
+        Command::Sim(args) => sim(args),
         Command::Info {
             dataset,
             data,
@@ -454,6 +500,125 @@ fn render(args: RenderArgs) -> Result<()> {
             samples_per_second: stats.samples as f64 / wall,
         };
         vizsim::output::write_json(json, &report)?;
+    }
+    Ok(())
+}
+
+#[derive(serde::Serialize)]
+struct SimReport<'a> {
+    dataset: &'a str,
+    transfer_function: &'a str,
+    view: &'a str,
+    projection: Projection,
+    width: u32,
+    height: u32,
+    memory: MemoryArg,
+    /// Clock cycles for the frame.
+    cycles: u64,
+    /// Frames per second at clock.frequency_mhz.
+    fps: f64,
+    /// Frame time in ns at clock.frequency_mhz.
+    frame_time_ns: f64,
+    steps: u64,
+    samples: u64,
+    leaps: u64,
+    discarded_after_ert: u64,
+    /// Everything the pipeline counted (stall cycles by cause, occupancy histograms...).
+    pipeline: &'a vizsim::arch::pipeline::CycleStats,
+    memory_stats: serde_json::Value,
+    /// Simulated cycles per wall-clock second of this run.
+    sim_cycles_per_second: f64,
+    wall_seconds: f64,
+    /// The resolved hardware configuration.
+    hardware: &'a HardwareConfig,
+    leaping: Leaping,
+}
+
+fn sim(args: SimArgs) -> Result<()> {
+    use vizsim::arch::pipeline::simulate;
+    use vizsim::arch::voxel_memory::{IdealMemory, VoxelMemory};
+    use vizsim::functional::leaping::{NoSkipping, OccupancyLeaping};
+    let config = args.hardware.load()?;
+    let (width, height) = parse_image_size(&args.size)?;
+    let view = View::parse(&args.view)?;
+    let settings = RenderSettings {
+        sample_spacing: args.spacing,
+        ert_threshold: (config.compositing.ert && !args.no_ert)
+            .then_some(config.compositing.ert_threshold as f32),
+        shading: args.shading,
+        ..RenderSettings::default()
+    };
+    settings.validate()?;
+    let volume = load_volume(&args.dataset, &args.data)?;
+    let tf = transfer::resolve(&args.tf, &volume.name)?;
+    let camera = Camera::for_volume(
+        volume_extent(&volume),
+        view,
+        args.projection.into(),
+        width,
+        height,
+    )?;
+    let leaping = Leaping::from_config(&config);
+    let renderer = FixedRenderer::new(&volume, &tf, &settings, &config, leaping)?;
+    let mut memory: Box<dyn VoxelMemory> = match args.memory {
+        MemoryArg::Ideal => Box::new(IdealMemory::new(args.ideal_latency)),
+    };
+    let start = Instant::now();
+    let result = match (&renderer.map, leaping) {
+        (Some(map), Leaping::Occupancy { hierarchy, .. }) => {
+            let skipper = OccupancyLeaping::new(map, hierarchy, renderer.widths.skip());
+            simulate(&renderer, &camera, &skipper, &mut memory, &config, true)?
+        }
+        _ => simulate(&renderer, &camera, &NoSkipping, &mut memory, &config, true)?,
+    };
+    let wall = start.elapsed().as_secs_f64();
+    let s = &result.stats;
+    let frame_time_ns = s.cycles as f64 * 1e3 / config.clock.frequency_mhz;
+    println!(
+        "{}: {} cycles = {:.3} ms/frame = {:.1} fps at {} MHz; {} steps ({} samples, {} leaps), {} discarded after ERT; \
+         stalls: queue empty {}, skip busy {}, memory {}, buffer full {}; {:.1} M cycles/s simulated",
+        volume.name,
+        s.cycles,
+        frame_time_ns / 1e6,
+        1e9 / frame_time_ns,
+        config.clock.frequency_mhz,
+        s.steps,
+        s.samples,
+        s.leaps,
+        s.discarded_after_ert,
+        s.stall_cycles.ray_queue_empty,
+        s.stall_cycles.skip_unit_busy,
+        s.stall_cycles.memory,
+        s.stall_cycles.compositing_buffer_full,
+        s.cycles as f64 / wall / 1e6
+    );
+    if let Some(path) = &args.output {
+        result.frame.write_png(path)?;
+    }
+    if let Some(path) = &args.json {
+        let report = SimReport {
+            dataset: &volume.name,
+            transfer_function: &tf.name,
+            view: &args.view,
+            projection: args.projection.into(),
+            width,
+            height,
+            memory: args.memory,
+            cycles: s.cycles,
+            fps: 1e9 / frame_time_ns,
+            frame_time_ns,
+            steps: s.steps,
+            samples: s.samples,
+            leaps: s.leaps,
+            discarded_after_ert: s.discarded_after_ert,
+            pipeline: s,
+            memory_stats: memory.stats_json(),
+            sim_cycles_per_second: s.cycles as f64 / wall,
+            wall_seconds: wall,
+            hardware: &config,
+            leaping,
+        };
+        vizsim::output::write_json(path, &report)?;
     }
     Ok(())
 }

@@ -1,12 +1,13 @@
 //! The compositing buffer: a reorder buffer keyed by (ray, sample index). Memory words return
 //! out of order across modules and rays; compositing must see each ray's samples in order. An
-//! entry is reserved when the ray queue issues the sample (a full buffer back-pressures issue),
-//! marked when its words have all arrived, and released to the compositing stages only when it
-//! is its ray's oldest outstanding sample.
+//! entry is reserved when the ray queue issues the sample (a full buffer back-pressures issue);
+//! its id is the sample's memory tag, so an arrival finds its entry directly. An entry is
+//! released to the compositing stages only when it has arrived and is its ray's oldest
+//! outstanding sample; rays take turns (round-robin) when several could release.
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::VecDeque;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BufferedSample {
     pub ray_id: usize,
     pub k: u64,
@@ -15,82 +16,87 @@ pub struct BufferedSample {
 }
 
 pub struct CompositingBuffer {
-    capacity: usize,
-    reserved: usize,
-    /// Per ray, its reserved samples in issue (= k) order. BTreeMap: deterministic scans.
-    per_ray: BTreeMap<usize, VecDeque<BufferedSample>>,
-    /// Where the next release scan starts (round-robin over rays).
-    next_ray: usize,
+    entries: Vec<BufferedSample>,
+    free: Vec<u32>,
+    /// Per ray, its entry ids in issue (= k) order.
+    per_ray: Vec<VecDeque<u32>>,
+    /// Rays holding entries, in the order they first reserved one.
+    active: Vec<usize>,
+    /// Round-robin position in `active`.
+    next: usize,
     pub peak: usize,
 }
 
 impl CompositingBuffer {
-    pub fn new(capacity: usize) -> CompositingBuffer {
+    pub fn new(capacity: usize, rays: usize) -> CompositingBuffer {
         CompositingBuffer {
-            capacity,
-            reserved: 0,
-            per_ray: BTreeMap::new(),
-            next_ray: 0,
+            entries: vec![BufferedSample::default(); capacity],
+            free: (0..capacity as u32).rev().collect(),
+            per_ray: vec![VecDeque::new(); rays],
+            active: Vec::new(),
+            next: 0,
             peak: 0,
         }
     }
 
     pub fn is_full(&self) -> bool {
-        self.reserved >= self.capacity
+        self.free.is_empty()
     }
 
     pub fn len(&self) -> usize {
-        self.reserved
+        self.entries.len() - self.free.len()
     }
 
     pub fn is_empty(&self) -> bool {
-        self.reserved == 0
+        self.len() == 0
     }
 
-    /// Reserves an entry for a sample just issued (the caller checked `is_full`).
-    pub fn reserve(&mut self, ray_id: usize, k: u64, pos: [i64; 3]) {
-        debug_assert!(!self.is_full());
-        self.per_ray
-            .entry(ray_id)
-            .or_default()
-            .push_back(BufferedSample {
-                ray_id,
-                k,
-                pos,
-                arrived: false,
-            });
-        self.reserved += 1;
-        self.peak = self.peak.max(self.reserved);
-    }
-
-    /// All words of sample (ray, k) have arrived.
-    pub fn arrive(&mut self, ray_id: usize, k: u64) {
-        let entry = self
-            .per_ray
-            .get_mut(&ray_id)
-            .and_then(|q| q.iter_mut().find(|s| s.k == k));
-        match entry {
-            Some(s) => s.arrived = true,
-            None => debug_assert!(false, "arrival for unreserved sample ({ray_id}, {k})"),
-        }
-    }
-
-    /// Releases one sample whose ray has it as the oldest outstanding one and whose words have
-    /// arrived, scanning rays round-robin from the last one released.
-    pub fn release(&mut self) -> Option<BufferedSample> {
-        let ray = self
-            .per_ray
-            .range(self.next_ray..)
-            .chain(self.per_ray.range(..self.next_ray))
-            .find(|(_, q)| q.front().is_some_and(|s| s.arrived))
-            .map(|(&r, _)| r)?;
-        let queue = self.per_ray.get_mut(&ray)?;
-        let sample = queue.pop_front()?;
+    /// Reserves an entry for a sample just issued; returns its id (the memory tag), or None
+    /// when the buffer is full.
+    pub fn reserve(&mut self, ray_id: usize, k: u64, pos: [i64; 3]) -> Option<u32> {
+        let id = self.free.pop()?;
+        self.entries[id as usize] = BufferedSample {
+            ray_id,
+            k,
+            pos,
+            arrived: false,
+        };
+        let queue = &mut self.per_ray[ray_id];
         if queue.is_empty() {
-            self.per_ray.remove(&ray);
+            self.active.push(ray_id);
         }
-        self.reserved -= 1;
-        self.next_ray = ray + 1;
-        Some(sample)
+        queue.push_back(id);
+        self.peak = self.peak.max(self.len());
+        Some(id)
+    }
+
+    /// All words of the sample with this entry id have arrived.
+    pub fn arrive(&mut self, id: u32) {
+        self.entries[id as usize].arrived = true;
+    }
+
+    /// Releases one sample that has arrived and is its ray's oldest outstanding one.
+    pub fn release(&mut self) -> Option<BufferedSample> {
+        let n = self.active.len();
+        let at = (0..n).map(|d| (self.next + d) % n).find(|&i| {
+            let ray = self.active[i];
+            self.per_ray[ray]
+                .front()
+                .is_some_and(|&id| self.entries[id as usize].arrived)
+        })?;
+        let ray = self.active[at];
+        let id = self.per_ray[ray].pop_front()?;
+        self.free.push(id);
+        if self.per_ray[ray].is_empty() {
+            self.active.remove(at);
+            self.next = if self.active.is_empty() {
+                0
+            } else {
+                at % self.active.len()
+            };
+        } else {
+            self.next = (at + 1) % n;
+        }
+        Some(self.entries[id as usize])
     }
 }

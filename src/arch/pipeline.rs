@@ -19,7 +19,7 @@
 //! classification, shading and compositing are the functional model's own functions (through
 //! `FixedRenderer`), so the image equals the functional image bit for bit by construction.
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::VecDeque;
 
 use super::compositing_buffer::CompositingBuffer;
 use super::ray_queue::{RayQueue, RaySlot};
@@ -121,12 +121,10 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
 
     let mut queue = RayQueue::new(config.ray_queue.rays, config.ray_queue.selection);
     let mut skip = SkipUnit::new(config.skip.latency);
-    let mut buffer = CompositingBuffer::new(config.compositing.buffer_capacity);
+    let mut buffer = CompositingBuffer::new(config.compositing.buffer_capacity, ray_count);
     let mut stages: VecDeque<StagedSample> = VecDeque::new();
     let mut feedback: VecDeque<(u64, usize)> = VecDeque::new();
-    let mut tags: HashMap<u64, (usize, u64, [i64; 3])> = HashMap::new();
     let mut completed_tags = Vec::new();
-    let mut next_tag = 0u64;
     let mut next_setup = 0usize;
     let mut retired = 0usize;
 
@@ -205,9 +203,8 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
         // Voxel memory: samples whose words are all in.
         completed_tags.clear();
         memory.step(now, &mut completed_tags);
-        for tag in &completed_tags {
-            let (ray_id, k, _) = tags.remove(tag).expect("memory completed an unknown tag");
-            buffer.arrive(ray_id, k);
+        for &tag in &completed_tags {
+            buffer.arrive(tag as u32);
             moved = true;
         }
 
@@ -223,7 +220,7 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
 
         // Skip unit results back in the ray queue.
         if let Some(update) = skip.pop_ready(now) {
-            if let Some(slot) = queue.slots[update.slot].as_mut() {
+            if let Some(slot) = queue.slot_mut(update.slot) {
                 slot.pos = update.pos;
                 slot.k = update.k;
                 slot.busy = false;
@@ -231,12 +228,10 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
             moved = true;
         }
         // Rays that have issued their last position (or learnt of ERT) leave the queue.
-        for i in 0..queue.slots.len() {
-            let leaving = queue.slots[i]
-                .as_ref()
-                .is_some_and(|s| !s.busy && s.finished());
+        for i in 0..queue.capacity() {
+            let leaving = queue.slot(i).is_some_and(|s| !s.busy && s.finished());
             if leaving {
-                let slot = queue.slots[i].take().expect("slot present");
+                let slot = queue.remove(i).expect("slot present");
                 let p = &mut progress[slot.ray_id];
                 p.issued_total = Some(slot.samples_issued);
                 try_retire(
@@ -258,8 +253,6 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
             &mut buffer,
             memory,
             skipper,
-            &mut tags,
-            &mut next_tag,
             &mut records,
             &mut stats,
             now,
@@ -296,16 +289,19 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
                 );
                 continue;
             }
-            queue.slots[free] = Some(RaySlot {
-                ray_id,
-                pos: ray.start,
-                ray,
-                k: 0,
-                busy: false,
-                terminated: false,
-                admitted: now,
-                samples_issued: 0,
-            });
+            queue.admit(
+                free,
+                RaySlot {
+                    ray_id,
+                    pos: ray.start,
+                    ray,
+                    k: 0,
+                    busy: false,
+                    terminated: false,
+                    admitted: now,
+                    samples_issued: 0,
+                },
+            );
         }
 
         // Account this cycle, then jump over cycles in which nothing can happen.
@@ -397,8 +393,6 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
     buffer: &mut CompositingBuffer,
     memory: &mut M,
     skipper: &S,
-    tags: &mut HashMap<u64, (usize, u64, [i64; 3])>,
-    next_tag: &mut u64,
     records: &mut [RayRecord],
     stats: &mut CycleStats,
     now: u64,
@@ -409,24 +403,27 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
     let Some(index) = queue.select(|_| true) else {
         return Some(Stall::SkipBusy);
     };
-    let slot = queue.slots[index].as_mut().expect("selected slot");
+    let slot = queue.slot_mut(index).expect("selected slot");
     let remaining = slot.ray.samples as u64 - slot.k;
     let (new_k, new_pos) = match skipper.decide(slot.pos, &slot.ray) {
         Action::Sample => {
             if buffer.is_full() {
                 return Some(Stall::BufferFull);
             }
-            let request = SampleRequest {
-                tag: *next_tag,
+            // The tag is filled in once the buffer entry exists; the check needs only the
+            // addresses.
+            let mut request = SampleRequest {
+                tag: 0,
                 base: renderer.base_voxel(slot.pos),
             };
             if !memory.can_accept(&request) {
                 return Some(Stall::Memory);
             }
-            *next_tag += 1;
+            let id = buffer
+                .reserve(slot.ray_id, slot.k, slot.pos)
+                .expect("buffer has room: checked above");
+            request.tag = id as u64;
             memory.push(request, now);
-            tags.insert(request.tag, (slot.ray_id, slot.k, slot.pos));
-            buffer.reserve(slot.ray_id, slot.k, slot.pos);
             slot.samples_issued += 1;
             records[slot.ray_id].samples += 1;
             stats.samples += 1;
@@ -468,9 +465,7 @@ fn deadlock<M: VoxelMemory>(
     why: &str,
 ) -> Error {
     let slots: Vec<String> = queue
-        .slots
-        .iter()
-        .flatten()
+        .slots()
         .map(|s| {
             format!(
                 "ray {} k {} busy {} terminated {}",

@@ -29,7 +29,8 @@ impl RaySlot {
 }
 
 pub struct RayQueue {
-    pub slots: Vec<Option<RaySlot>>,
+    slots: Vec<Option<RaySlot>>,
+    occupied: usize,
     selection: RaySelection,
     next_round_robin: usize,
 }
@@ -38,6 +39,7 @@ impl RayQueue {
     pub fn new(rays: usize, selection: RaySelection) -> RayQueue {
         RayQueue {
             slots: vec![None; rays],
+            occupied: 0,
             selection,
             next_round_robin: 0,
         }
@@ -48,7 +50,37 @@ impl RayQueue {
     }
 
     pub fn occupancy(&self) -> usize {
-        self.slots.iter().filter(|s| s.is_some()).count()
+        self.occupied
+    }
+
+    pub fn capacity(&self) -> usize {
+        self.slots.len()
+    }
+
+    pub fn slot(&self, index: usize) -> Option<&RaySlot> {
+        self.slots[index].as_ref()
+    }
+
+    pub fn slot_mut(&mut self, index: usize) -> Option<&mut RaySlot> {
+        self.slots[index].as_mut()
+    }
+
+    pub fn slots(&self) -> impl Iterator<Item = &RaySlot> {
+        self.slots.iter().flatten()
+    }
+
+    /// Puts a ray into a free slot (the caller found it with `free_slot`).
+    pub fn admit(&mut self, index: usize, slot: RaySlot) {
+        debug_assert!(self.slots[index].is_none());
+        self.slots[index] = Some(slot);
+        self.occupied += 1;
+    }
+
+    /// Takes a ray out of its slot.
+    pub fn remove(&mut self, index: usize) -> Option<RaySlot> {
+        let slot = self.slots[index].take();
+        self.occupied -= slot.is_some() as usize;
+        slot
     }
 
     /// The slot to issue from this cycle among those `eligible` accepts (ready, not busy, not

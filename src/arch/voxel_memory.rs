@@ -75,3 +75,24 @@ impl VoxelMemory for IdealMemory {
         serde_json::json!({ "model": "ideal", "latency_cycles": self.latency, "requests": self.requests })
     }
 }
+
+impl<M: VoxelMemory + ?Sized> VoxelMemory for Box<M> {
+    fn can_accept(&self, request: &SampleRequest) -> bool {
+        (**self).can_accept(request)
+    }
+    fn push(&mut self, request: SampleRequest, now: u64) {
+        (**self).push(request, now)
+    }
+    fn step(&mut self, now: u64, completed: &mut Vec<u64>) {
+        (**self).step(now, completed)
+    }
+    fn is_idle(&self) -> bool {
+        (**self).is_idle()
+    }
+    fn next_event(&self, now: u64) -> Option<u64> {
+        (**self).next_event(now)
+    }
+    fn stats_json(&self) -> serde_json::Value {
+        (**self).stats_json()
+    }
+}
