@@ -174,6 +174,9 @@ struct RenderArgs {
     /// Also write statistics as JSON.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Also write one CSV row per ray: samples, leaps, where it entered and left, ERT.
+    #[arg(long)]
+    rays: Option<PathBuf>,
     /// `float`: the reference ray caster; `fixed`: the functional fixed-point model.
     #[arg(long, value_enum, default_value = "float")]
     model: ModelArg,
@@ -459,6 +462,9 @@ fn render(args: RenderArgs) -> Result<()> {
     };
     let wall = start.elapsed().as_secs_f64();
     frame.write_png(&args.output)?;
+    if let Some(path) = &args.rays {
+        frame.write_rays_csv(path)?;
+    }
     let stats = frame.stats();
     let frame_time_ns = hardware
         .as_ref()

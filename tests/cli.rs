@@ -63,6 +63,28 @@ fn render_writes_a_png_and_json() {
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(stats["stats"]["rays"], 1200);
     assert!(stats["stats"]["samples"].as_u64().unwrap() > 0);
+    // Per-ray counts: one row per pixel, and their samples add up to the total.
+    let rays = dir.join("rays.csv");
+    let out = vizsim(&[
+        "render",
+        "--dataset",
+        "phantom:sphere:32",
+        "--size",
+        "40x30",
+        "-o",
+        png.to_str().unwrap(),
+        "--rays",
+        rays.to_str().unwrap(),
+    ]);
+    assert!(out.status.success());
+    let text = std::fs::read_to_string(&rays).unwrap();
+    let rows: Vec<&str> = text.lines().skip(1).collect();
+    assert_eq!(rows.len(), 1200);
+    let total: u64 = rows
+        .iter()
+        .map(|r| r.split(',').nth(3).unwrap().parse::<u64>().unwrap())
+        .sum();
+    assert_eq!(total, stats["stats"]["samples"].as_u64().unwrap());
 }
 
 #[test]

@@ -130,6 +130,34 @@ impl Frame {
         self.pixels.iter().flatten().copied().collect()
     }
 
+    /// Writes one CSV row per ray (row-major pixels), atomically.
+    pub fn write_rays_csv(&self, path: &Path) -> Result<()> {
+        crate::output::write_atomically(path, |w| {
+            use std::io::Write;
+            writeln!(
+                w,
+                "px,py,hit,samples,leaps,skipped,first_sample,end_sample,t_enter,t_exit,terminated_early"
+            )?;
+            for (i, r) in self.rays.iter().enumerate() {
+                let (px, py) = (i as u32 % self.width, i as u32 / self.width);
+                writeln!(
+                    w,
+                    "{px},{py},{},{},{},{},{},{},{},{},{}",
+                    r.hit as u8,
+                    r.samples,
+                    r.leaps,
+                    r.skipped,
+                    r.first_sample,
+                    r.end_sample,
+                    r.t_enter,
+                    r.t_exit,
+                    r.terminated_early as u8
+                )?;
+            }
+            Ok(())
+        })
+    }
+
     /// Writes a PNG atomically: to a temporary file beside `path`, then renamed, so a failure
     /// never leaves a half-written image.
     pub fn write_png(&self, path: &Path) -> Result<()> {
