@@ -138,8 +138,9 @@ struct DataArgs {
     data_dir: Option<PathBuf>,
 }
 
+/// What defines a frame: dataset, transfer function, view and sampling.
 #[derive(Args)]
-struct RenderArgs {
+struct FrameArgs {
     /// Dataset: a name in the data folder (fuel, neghip, aneurism...), phantom:KIND[:SIZE], or a file.
     #[arg(long)]
     dataset: String,
@@ -162,12 +163,52 @@ struct RenderArgs {
     /// Disable early ray termination.
     #[arg(long)]
     no_ert: bool,
-    /// Early ray termination threshold (accumulated opacity).
-    #[arg(long, default_value_t = 0.95)]
-    ert_threshold: f32,
-    /// Phong shading from gradients.
+    /// Phong shading from per-voxel gradients.
     #[arg(long)]
     shading: bool,
+}
+
+impl FrameArgs {
+    fn image_size(&self) -> Result<(u32, u32)> {
+        Ok(parse_image_size(&self.size)?)
+    }
+
+    /// Render settings with the given ERT threshold (None when --no-ert).
+    fn settings(&self, ert_threshold: f32) -> Result<RenderSettings> {
+        let settings = RenderSettings {
+            sample_spacing: self.spacing,
+            ert_threshold: (!self.no_ert).then_some(ert_threshold),
+            shading: self.shading,
+            ..RenderSettings::default()
+        };
+        settings.validate()?;
+        Ok(settings)
+    }
+
+    /// Loads the volume and transfer function and places the camera.
+    fn load(&self) -> Result<(Volume, vizsim::transfer::TransferFunction, Camera)> {
+        let (width, height) = self.image_size()?;
+        let view = View::parse(&self.view)?;
+        let volume = load_volume(&self.dataset, &self.data)?;
+        let tf = transfer::resolve(&self.tf, &volume.name)?;
+        let camera = Camera::for_volume(
+            volume_extent(&volume),
+            view,
+            self.projection.into(),
+            width,
+            height,
+        )?;
+        Ok((volume, tf, camera))
+    }
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    #[command(flatten)]
+    frame: FrameArgs,
+    /// Early ray termination threshold (float model; the fixed model takes the configuration's).
+    #[arg(long, default_value_t = 0.95)]
+    ert_threshold: f32,
     /// Output PNG.
     #[arg(short, long)]
     output: PathBuf,
@@ -186,25 +227,8 @@ struct RenderArgs {
 
 #[derive(Args)]
 struct SimArgs {
-    #[arg(long)]
-    dataset: String,
     #[command(flatten)]
-    data: DataArgs,
-    #[arg(long, default_value = "class")]
-    tf: String,
-    #[arg(long, default_value = "front")]
-    view: String,
-    #[arg(long, value_enum, default_value = "ortho")]
-    projection: ProjectionArg,
-    #[arg(long, default_value = "256x256")]
-    size: String,
-    #[arg(long, default_value_t = 1.0)]
-    spacing: f32,
-    /// Disable early ray termination.
-    #[arg(long)]
-    no_ert: bool,
-    #[arg(long)]
-    shading: bool,
+    frame: FrameArgs,
     /// Voxel memory model: `ideal` (fixed latency, unlimited bandwidth).
     #[arg(long, value_enum, default_value = "ideal")]
     memory: MemoryArg,
@@ -411,8 +435,6 @@ struct RenderReport<'a> {
 }
 
 fn render(args: RenderArgs) -> Result<()> {
-    let (width, height) = parse_image_size(&args.size)?;
-    let view = View::parse(&args.view)?;
     let hardware = if args.model == ModelArg::Fixed {
         Some(args.hardware.load()?)
     } else {
@@ -426,28 +448,15 @@ fn render(args: RenderArgs) -> Result<()> {
         );
         None
     };
-    let ert_threshold = match &hardware {
-        Some(h) => {
-            (h.compositing.ert && !args.no_ert).then_some(h.compositing.ert_threshold as f32)
-        }
-        None => (!args.no_ert).then_some(args.ert_threshold),
-    };
-    let settings = RenderSettings {
-        sample_spacing: args.spacing,
-        ert_threshold,
-        shading: args.shading,
-        ..RenderSettings::default()
-    };
-    settings.validate()?;
-    let volume = load_volume(&args.dataset, &args.data)?;
-    let tf = transfer::resolve(&args.tf, &volume.name)?;
-    let camera = Camera::for_volume(
-        volume_extent(&volume),
-        view,
-        args.projection.into(),
-        width,
-        height,
-    )?;
+    let mut settings = args.frame.settings(match &hardware {
+        Some(h) => h.compositing.ert_threshold as f32,
+        None => args.ert_threshold,
+    })?;
+    if hardware.as_ref().is_some_and(|h| !h.compositing.ert) {
+        settings.ert_threshold = None;
+    }
+    let (volume, tf, camera) = args.frame.load()?;
+    let (width, height) = (camera.width, camera.height);
     let start = Instant::now();
     let (frame, leaping) = match &hardware {
         None => (
@@ -489,8 +498,8 @@ fn render(args: RenderArgs) -> Result<()> {
             dataset: &volume.name,
             transfer_function: &tf.name,
             model: if hardware.is_some() { "fixed" } else { "float" },
-            view: &args.view,
-            projection: args.projection.into(),
+            view: &args.frame.view,
+            projection: args.frame.projection.into(),
             width,
             height,
             settings: &settings,
@@ -543,40 +552,29 @@ struct SimReport<'a> {
 fn sim(args: SimArgs) -> Result<()> {
     use vizsim::arch::pipeline::simulate;
     use vizsim::arch::voxel_memory::{IdealMemory, VoxelMemory};
-    use vizsim::functional::leaping::{NoSkipping, OccupancyLeaping};
     let config = args.hardware.load()?;
-    let (width, height) = parse_image_size(&args.size)?;
-    let view = View::parse(&args.view)?;
-    let settings = RenderSettings {
-        sample_spacing: args.spacing,
-        ert_threshold: (config.compositing.ert && !args.no_ert)
-            .then_some(config.compositing.ert_threshold as f32),
-        shading: args.shading,
-        ..RenderSettings::default()
-    };
-    settings.validate()?;
-    let volume = load_volume(&args.dataset, &args.data)?;
-    let tf = transfer::resolve(&args.tf, &volume.name)?;
-    let camera = Camera::for_volume(
-        volume_extent(&volume),
-        view,
-        args.projection.into(),
-        width,
-        height,
-    )?;
+    let mut settings = args
+        .frame
+        .settings(config.compositing.ert_threshold as f32)?;
+    if !config.compositing.ert {
+        settings.ert_threshold = None;
+    }
+    let (volume, tf, camera) = args.frame.load()?;
+    let (width, height) = (camera.width, camera.height);
     let leaping = Leaping::from_config(&config);
     let renderer = FixedRenderer::new(&volume, &tf, &settings, &config, leaping)?;
     let mut memory: Box<dyn VoxelMemory> = match args.memory {
         MemoryArg::Ideal => Box::new(IdealMemory::new(args.ideal_latency)),
     };
     let start = Instant::now();
-    let result = match (&renderer.map, leaping) {
-        (Some(map), Leaping::Occupancy { hierarchy, .. }) => {
-            let skipper = OccupancyLeaping::new(map, hierarchy, renderer.widths.skip());
-            simulate(&renderer, &camera, &skipper, &mut memory, &config, true)?
-        }
-        _ => simulate(&renderer, &camera, &NoSkipping, &mut memory, &config, true)?,
-    };
+    let result = simulate(
+        &renderer,
+        &camera,
+        &renderer.skipper(),
+        &mut memory,
+        &config,
+        true,
+    )?;
     let wall = start.elapsed().as_secs_f64();
     let s = &result.stats;
     let frame_time_ns = s.cycles as f64 * 1e3 / config.clock.frequency_mhz;
@@ -605,8 +603,8 @@ fn sim(args: SimArgs) -> Result<()> {
         let report = SimReport {
             dataset: &volume.name,
             transfer_function: &tf.name,
-            view: &args.view,
-            projection: args.projection.into(),
+            view: &args.frame.view,
+            projection: args.frame.projection.into(),
             width,
             height,
             memory: args.memory,

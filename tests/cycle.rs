@@ -8,7 +8,6 @@ use vizsim::arch::pipeline::{simulate, CycleResult};
 use vizsim::arch::voxel_memory::IdealMemory;
 use vizsim::camera::{Projection, View};
 use vizsim::config::HardwareConfig;
-use vizsim::functional::leaping::{NoSkipping, OccupancyLeaping};
 use vizsim::functional::renderer::{FixedRenderer, Leaping};
 use vizsim::occupancy::OccupancyKind;
 use vizsim::render::RenderSettings;
@@ -39,13 +38,15 @@ fn run(
     skip_dead: bool,
 ) -> CycleResult {
     let mut memory = IdealMemory::new(mem_latency);
-    match (&renderer.map, renderer.leaping) {
-        (Some(map), Leaping::Occupancy { hierarchy, .. }) => {
-            let skipper = OccupancyLeaping::new(map, hierarchy, renderer.widths.skip());
-            simulate(renderer, cam, &skipper, &mut memory, config, skip_dead).unwrap()
-        }
-        _ => simulate(renderer, cam, &NoSkipping, &mut memory, config, skip_dead).unwrap(),
-    }
+    simulate(
+        renderer,
+        cam,
+        &renderer.skipper(),
+        &mut memory,
+        config,
+        skip_dead,
+    )
+    .unwrap()
 }
 
 fn check_against_functional(volume: &Volume, tf: &TransferFunction, size: u32) {

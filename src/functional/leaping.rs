@@ -66,3 +66,20 @@ impl SpaceSkipper for OccupancyLeaping<'_> {
         Action::Leap(leap_steps(pos, ray.step, &ray.reciprocals, level, &self.widths).unwrap_or(1))
     }
 }
+
+/// The strategy a hardware configuration selects, as one type (so callers need no dispatch of
+/// their own). New strategies are added here and in `FixedRenderer::skipper`.
+pub enum ConfiguredSkipper<'a> {
+    None(NoSkipping),
+    Occupancy(OccupancyLeaping<'a>),
+}
+
+impl SpaceSkipper for ConfiguredSkipper<'_> {
+    #[inline(always)]
+    fn decide(&self, pos: [i64; 3], ray: &FixedRay) -> Action {
+        match self {
+            ConfiguredSkipper::None(s) => s.decide(pos, ray),
+            ConfiguredSkipper::Occupancy(s) => s.decide(pos, ray),
+        }
+    }
+}

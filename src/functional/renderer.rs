@@ -3,17 +3,15 @@
 //! the fixed-point arithmetic of `arith`. It counts steps (samples + leaps); the published cost
 //! is one step per 12.5 ns (`clock.step_time_ns`).
 
-use rayon::prelude::*;
-
 use super::arith::{interpolate, Accumulator, ClassificationTable, Compositor, Neighbourhood};
-use super::leaping::{Action, NoSkipping, OccupancyLeaping, SpaceSkipper};
+use super::leaping::{Action, ConfiguredSkipper, NoSkipping, OccupancyLeaping, SpaceSkipper};
 use super::setup::{check_widths, setup_ray, FixedRay};
 use super::Widths;
 use crate::camera::Camera;
 use crate::config::HardwareConfig;
 use crate::error::Result;
 use crate::occupancy::{check_subcube_size, OccupancyKind, OccupancyMap};
-use crate::render::{Frame, RayRecord, RenderSettings};
+use crate::render::{render_frame, Frame, RayRecord, RenderSettings};
 use crate::shading::{phong_fixed, GradientVolume};
 use crate::transfer::TransferFunction;
 use crate::volume::Volume;
@@ -114,38 +112,24 @@ impl<'a> FixedRenderer<'a> {
         })
     }
 
-    pub fn render(&self, camera: &Camera) -> Frame {
+    /// The space-skipping strategy this renderer was configured with.
+    pub fn skipper(&self) -> ConfiguredSkipper<'_> {
         match (&self.map, self.leaping) {
-            (Some(map), Leaping::Occupancy { hierarchy, .. }) => self.render_with(
-                camera,
-                &OccupancyLeaping::new(map, hierarchy, self.widths.skip()),
+            (Some(map), Leaping::Occupancy { hierarchy, .. }) => ConfiguredSkipper::Occupancy(
+                OccupancyLeaping::new(map, hierarchy, self.widths.skip()),
             ),
-            _ => self.render_with(camera, &NoSkipping),
+            _ => ConfiguredSkipper::None(NoSkipping),
         }
     }
 
+    pub fn render(&self, camera: &Camera) -> Frame {
+        self.render_with(camera, &self.skipper())
+    }
+
     pub fn render_with<S: SpaceSkipper>(&self, camera: &Camera, skipper: &S) -> Frame {
-        let (w, h) = (camera.width, camera.height);
-        let mut pixels = vec![[0u8; 4]; (w * h) as usize];
-        let mut rays = vec![RayRecord::default(); (w * h) as usize];
-        pixels
-            .par_chunks_mut(w as usize)
-            .zip(rays.par_chunks_mut(w as usize))
-            .enumerate()
-            .for_each(|(py, (pixel_row, ray_row))| {
-                for px in 0..w {
-                    let ray = self.setup(camera, px, py as u32);
-                    let (rgba, record) = self.cast(&ray, skipper);
-                    pixel_row[px as usize] = rgba;
-                    ray_row[px as usize] = record;
-                }
-            });
-        Frame {
-            width: w,
-            height: h,
-            pixels,
-            rays,
-        }
+        render_frame(camera.width, camera.height, |px, py| {
+            self.cast(&self.setup(camera, px, py), skipper)
+        })
     }
 
     pub fn volume_dims(&self) -> [usize; 3] {

@@ -11,9 +11,8 @@
 //! rayon threads.
 
 use glam::{Vec3A, Vec4};
-use rayon::prelude::*;
 
-use super::{clip_to_box, sample_range, Frame, RayRecord, RenderSettings};
+use super::{clip_to_box, render_frame, sample_range, Frame, RayRecord, RenderSettings};
 use crate::camera::{Camera, Ray};
 use crate::error::Result;
 use crate::shading::{phong_float, voxel_gradient};
@@ -51,27 +50,9 @@ impl<'a> FloatRenderer<'a> {
     }
 
     pub fn render(&self, camera: &Camera) -> Frame {
-        let (w, h) = (camera.width, camera.height);
-        let mut pixels = vec![[0u8; 4]; (w * h) as usize];
-        let mut rays = vec![RayRecord::default(); (w * h) as usize];
-        pixels
-            .par_chunks_mut(w as usize)
-            .zip(rays.par_chunks_mut(w as usize))
-            .enumerate()
-            .for_each(|(py, (pixel_row, ray_row))| {
-                for px in 0..w {
-                    let ray = camera.voxel_ray(px, py as u32, self.volume.spacing);
-                    let (rgba, record) = self.cast(&ray);
-                    pixel_row[px as usize] = rgba;
-                    ray_row[px as usize] = record;
-                }
-            });
-        Frame {
-            width: w,
-            height: h,
-            pixels,
-            rays,
-        }
+        render_frame(camera.width, camera.height, |px, py| {
+            self.cast(&camera.voxel_ray(px, py, self.volume.spacing))
+        })
     }
 
     /// Casts one ray; returns the final pixel and what the ray did.

@@ -172,6 +172,35 @@ impl Frame {
     }
 }
 
+/// Renders a frame by calling `cast(px, py)` for every pixel, rows in parallel (rayon). Each
+/// pixel depends only on its own inputs, so the frame is bit-identical for any thread count.
+pub fn render_frame(
+    width: u32,
+    height: u32,
+    cast: impl Fn(u32, u32) -> ([u8; 4], RayRecord) + Sync,
+) -> Frame {
+    use rayon::prelude::*;
+    let mut pixels = vec![[0u8; 4]; (width * height) as usize];
+    let mut rays = vec![RayRecord::default(); (width * height) as usize];
+    pixels
+        .par_chunks_mut(width as usize)
+        .zip(rays.par_chunks_mut(width as usize))
+        .enumerate()
+        .for_each(|(py, (pixel_row, ray_row))| {
+            for px in 0..width {
+                let (rgba, record) = cast(px, py as u32);
+                pixel_row[px as usize] = rgba;
+                ray_row[px as usize] = record;
+            }
+        });
+    Frame {
+        width,
+        height,
+        pixels,
+        rays,
+    }
+}
+
 /// Where a ray meets the box [0, dims-1]^3 (slab method), clipped to `ray.t_min`.
 /// Returns (t_enter, t_exit) with t_enter <= t_exit, or None when it misses.
 pub fn clip_to_box(ray: &Ray, dims: [usize; 3]) -> Option<(f32, f32)> {
