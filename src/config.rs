@@ -7,6 +7,8 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::arch::address_map::MemoryConfig;
+use crate::arch::sdram::SdramTiming;
 use crate::error::{Error, Result};
 use crate::occupancy::{OccupancyKind, SUBCUBE_SIZES};
 
@@ -26,6 +28,8 @@ pub struct HardwareConfig {
     pub classification: ClassificationConfig,
     pub shading: ShadingConfig,
     pub compositing: CompositingConfig,
+    pub memory: MemoryConfig,
+    pub sdram: SdramTiming,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -229,8 +229,9 @@ struct RenderArgs {
 struct SimArgs {
     #[command(flatten)]
     frame: FrameArgs,
-    /// Voxel memory model: `ideal` (fixed latency, unlimited bandwidth).
-    #[arg(long, value_enum, default_value = "ideal")]
+    /// Voxel memory model: `sdram` (modules, banks, FIFOs, overtaking) or `ideal` (fixed
+    /// latency, unlimited bandwidth: the bound with free memory).
+    #[arg(long, value_enum, default_value = "sdram")]
     memory: MemoryArg,
     /// Latency of the ideal memory, in cycles.
     #[arg(long, default_value_t = 6)]
@@ -248,6 +249,7 @@ struct SimArgs {
 #[derive(clap::ValueEnum, Clone, Copy, Debug, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 enum MemoryArg {
+    Sdram,
     Ideal,
 }
 
@@ -551,6 +553,7 @@ struct SimReport<'a> {
 
 fn sim(args: SimArgs) -> Result<()> {
     use vizsim::arch::pipeline::simulate;
+    use vizsim::arch::sdram_module::SdramMemory;
     use vizsim::arch::voxel_memory::{IdealMemory, VoxelMemory};
     let config = args.hardware.load()?;
     let mut settings = args
@@ -563,7 +566,16 @@ fn sim(args: SimArgs) -> Result<()> {
     let (width, height) = (camera.width, camera.height);
     let leaping = Leaping::from_config(&config);
     let renderer = FixedRenderer::new(&volume, &tf, &settings, &config, leaping)?;
+    config
+        .memory
+        .check_covers(volume.dims, "hardware configuration")?;
     let mut memory: Box<dyn VoxelMemory> = match args.memory {
+        MemoryArg::Sdram => Box::new(SdramMemory::new(
+            &config.memory,
+            &config.sdram,
+            volume.dims,
+            config.clock.frequency_mhz,
+        )),
         MemoryArg::Ideal => Box::new(IdealMemory::new(args.ideal_latency)),
     };
     let start = Instant::now();

@@ -2,8 +2,12 @@
 //! its own state, bounded queues and a per-cycle step; `pipeline` only wires them and runs the
 //! clock. Arithmetic comes from the functional model.
 
+pub mod address_map;
 pub mod compositing_buffer;
+pub mod overtaking_fifo;
 pub mod pipeline;
 pub mod ray_queue;
+pub mod sdram;
+pub mod sdram_module;
 pub mod skip_unit;
 pub mod voxel_memory;

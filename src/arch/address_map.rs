@@ -1,0 +1,296 @@
+//! Address mapping: which memory module, bank, row and column hold each word a sample needs.
+//! A policy chosen by configuration (`memory.mapping`):
+//!
+//! - `replicated4` (published): 4 modules, module = (x mod 2) + 2·(y mod 2); each 64-bit word
+//!   holds the voxel pair (z, z+1) and every z starts a pair (2× storage), so a sample's
+//!   2×2×2 neighbourhood is one word from each module. Module-local word coordinates
+//!   (x/2, y/2, z) are grouped in cubic blocks of `block` words, one block per row.
+//! - `interleaved8`: 8 modules, module = (x mod 2) + 2·(y mod 2) + 4·(z mod 2), one voxel per
+//!   word, no replication; local coordinates (x/2, y/2, z/2) in cubic blocks likewise.
+//! - `linear4`: the 4-module interleave of `replicated4` with a plain linear address inside the
+//!   module (x/2 fastest, then y/2, then z): the layout without locality, for comparison.
+//!
+//! Cubic layouts: block B = local / block, offset o = local mod block; column = o_x + b_x·(o_y +
+//! b_y·o_z). The bank takes the low bits of the block coordinates, interleaved x, y, z (4 banks:
+//! bank = (B_x mod 2) + 2·(B_y mod 2), so blocks next along x or y lie in another bank); the row
+//! is the linear index of the remaining block bits. Every block has its own (bank, row).
+//! Linear: address a, global row r = a / columns, column = a mod columns, bank = r mod banks,
+//! row = r / banks.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mapping {
+    Replicated4,
+    Interleaved8,
+    Linear4,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RowPolicy {
+    /// Leave a row open after a read (hits are cheap, conflicts pay tRP).
+    Open,
+    /// Precharge a bank after a read unless a queued request hits its row.
+    Close,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MemoryConfig {
+    pub mapping: Mapping,
+    /// Cubic block of module-local words stored in one row.
+    pub block: [u32; 3],
+    /// Banks per module (power of two).
+    pub banks: u32,
+    /// Rows per bank.
+    pub rows: u32,
+    /// Words per row (power of two).
+    pub columns: u32,
+    /// Address FIFO depth per module (the overtaking FIFO's storage).
+    pub address_fifo_depth: usize,
+    /// Voxel FIFO depth per module (returned words).
+    pub voxel_fifo_depth: usize,
+    /// Let a request to an open row overtake older requests to other rows.
+    pub overtaking: bool,
+    /// How many of the oldest requests the overtaking FIFO searches.
+    pub overtaking_window: usize,
+    /// How often the oldest request may be overtaken before it must be served.
+    pub max_bypass: u32,
+    pub row_policy: RowPolicy,
+}
+
+impl MemoryConfig {
+    pub fn validate(&self, source: &str) -> Result<()> {
+        let err = |field: &str, msg: String| Err(Error::config(source, field, msg));
+        for (i, b) in self.block.iter().enumerate() {
+            if !b.is_power_of_two() || *b > 64 {
+                return err(
+                    &format!("memory.block[{i}]"),
+                    format!("{b} is not allowed; allowed a power of two 1..=64"),
+                );
+            }
+        }
+        if !self.banks.is_power_of_two() || self.banks > 16 {
+            return err(
+                "memory.banks",
+                format!("{} is not allowed; allowed 1, 2, 4, 8, 16", self.banks),
+            );
+        }
+        if !self.columns.is_power_of_two() || !(8..=1 << 16).contains(&self.columns) {
+            return err(
+                "memory.columns",
+                format!(
+                    "{} is not allowed; allowed a power of two 8..=65536",
+                    self.columns
+                ),
+            );
+        }
+        let words = self.block.iter().product::<u32>();
+        if words > self.columns {
+            return err(
+                "memory.block",
+                format!(
+                    "{:?} holds {words} words, more than a row's {} columns",
+                    self.block, self.columns
+                ),
+            );
+        }
+        if !(1..=1 << 24).contains(&self.rows) {
+            return err(
+                "memory.rows",
+                format!("{} is out of range; allowed 1..=16777216", self.rows),
+            );
+        }
+        if !(1..=4096).contains(&self.address_fifo_depth) {
+            return err(
+                "memory.address_fifo_depth",
+                format!(
+                    "{} is out of range; allowed 1..=4096",
+                    self.address_fifo_depth
+                ),
+            );
+        }
+        if !(1..=4096).contains(&self.voxel_fifo_depth) {
+            return err(
+                "memory.voxel_fifo_depth",
+                format!(
+                    "{} is out of range; allowed 1..=4096",
+                    self.voxel_fifo_depth
+                ),
+            );
+        }
+        if !(1..=self.address_fifo_depth).contains(&self.overtaking_window) {
+            return err(
+                "memory.overtaking_window",
+                format!(
+                    "{} is out of range; allowed 1..=address_fifo_depth ({})",
+                    self.overtaking_window, self.address_fifo_depth
+                ),
+            );
+        }
+        Ok(())
+    }
+
+    pub fn modules(&self) -> usize {
+        match self.mapping {
+            Mapping::Replicated4 | Mapping::Linear4 => 4,
+            Mapping::Interleaved8 => 8,
+        }
+    }
+
+    /// Module-local word extent for a volume.
+    fn local_dims(&self, dims: [usize; 3]) -> [usize; 3] {
+        match self.mapping {
+            Mapping::Replicated4 | Mapping::Linear4 => {
+                [dims[0].div_ceil(2), dims[1].div_ceil(2), dims[2]]
+            }
+            Mapping::Interleaved8 => dims.map(|d| d.div_ceil(2)),
+        }
+    }
+
+    /// An error when the volume does not fit the modules' rows × banks × columns.
+    pub fn check_covers(&self, dims: [usize; 3], source: &str) -> Result<()> {
+        let local = self.local_dims(dims);
+        let rows_needed = match self.mapping {
+            Mapping::Linear4 => {
+                let words = local.iter().product::<usize>() as u64;
+                words
+                    .div_ceil(self.columns as u64)
+                    .div_ceil(self.banks as u64)
+            }
+            _ => {
+                let blocks = [0, 1, 2].map(|a| local[a].div_ceil(self.block[a] as usize));
+                bank_split(blocks, self.banks)
+                    .1
+                    .iter()
+                    .map(|&d| d as u64)
+                    .product()
+            }
+        };
+        if rows_needed > self.rows as u64 {
+            return Err(Error::config(
+                source,
+                "memory.rows",
+                format!(
+                    "a {dims:?} volume needs {rows_needed} rows per bank with mapping {:?}, the modules have {}",
+                    self.mapping, self.rows
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct WordAddress {
+    pub module: usize,
+    pub bank: u32,
+    pub row: u32,
+    pub column: u32,
+}
+
+/// Maps sample neighbourhoods to word addresses for one volume.
+#[derive(Clone, Debug)]
+pub struct AddressMap {
+    config: MemoryConfig,
+    local: [usize; 3],
+    blocks: [usize; 3],
+}
+
+impl AddressMap {
+    pub fn new(config: &MemoryConfig, dims: [usize; 3]) -> AddressMap {
+        let local = config.local_dims(dims);
+        let blocks = [0, 1, 2].map(|a| local[a].div_ceil(config.block[a] as usize));
+        AddressMap {
+            config: config.clone(),
+            local,
+            blocks,
+        }
+    }
+
+    /// The words a sample with lower corner `base` reads, one per module it touches: the first
+    /// `n` entries of the returned array.
+    pub fn sample_words(&self, base: [usize; 3]) -> ([WordAddress; 8], usize) {
+        let mut out = [WordAddress {
+            module: 0,
+            bank: 0,
+            row: 0,
+            column: 0,
+        }; 8];
+        let mut n = 0;
+        let dz_range = match self.config.mapping {
+            Mapping::Interleaved8 => 0..2,
+            _ => 0..1, // the word at z holds the pair (z, z+1)
+        };
+        for dz in dz_range {
+            for dy in 0..2 {
+                for dx in 0..2 {
+                    let (x, y, z) = (base[0] + dx, base[1] + dy, base[2] + dz);
+                    let module = match self.config.mapping {
+                        Mapping::Interleaved8 => (x & 1) + 2 * (y & 1) + 4 * (z & 1),
+                        _ => (x & 1) + 2 * (y & 1),
+                    };
+                    let local = match self.config.mapping {
+                        Mapping::Interleaved8 => [x >> 1, y >> 1, z >> 1],
+                        _ => [x >> 1, y >> 1, z],
+                    };
+                    out[n] = self.word(module, local);
+                    n += 1;
+                }
+            }
+        }
+        (out, n)
+    }
+
+    fn word(&self, module: usize, l: [usize; 3]) -> WordAddress {
+        let c = &self.config;
+        match c.mapping {
+            Mapping::Linear4 => {
+                let a = l[0] + self.local[0] * (l[1] + self.local[1] * l[2]);
+                let global_row = a / c.columns as usize;
+                let banks = c.banks as usize;
+                WordAddress {
+                    module,
+                    bank: (global_row % banks) as u32,
+                    row: (global_row / banks) as u32,
+                    column: (a % c.columns as usize) as u32,
+                }
+            }
+            _ => {
+                let b = c.block.map(|v| v as usize);
+                let block = [l[0] / b[0], l[1] / b[1], l[2] / b[2]];
+                let o = [l[0] % b[0], l[1] % b[1], l[2] % b[2]];
+                let (shifts, rest) = bank_split(self.blocks, c.banks);
+                let mut bank = 0usize;
+                let mut used = [0u32; 3];
+                for bit in 0..c.banks.trailing_zeros() {
+                    let axis = bit as usize % 3;
+                    bank |= ((block[axis] >> used[axis]) & 1) << bit;
+                    used[axis] += 1;
+                }
+                let r = [0, 1, 2].map(|a| block[a] >> shifts[a]);
+                WordAddress {
+                    module,
+                    bank: bank as u32,
+                    row: (r[0] + rest[0] * (r[1] + rest[1] * r[2])) as u32,
+                    column: (o[0] + b[0] * (o[1] + b[1] * o[2])) as u32,
+                }
+            }
+        }
+    }
+}
+
+/// How the bank bits split a block grid: per axis, how many low coordinate bits go to the bank
+/// (interleaved x, y, z), and the block grid that remains for rows.
+fn bank_split(blocks: [usize; 3], banks: u32) -> ([u32; 3], [usize; 3]) {
+    let mut shifts = [0u32; 3];
+    for bit in 0..banks.trailing_zeros() {
+        shifts[bit as usize % 3] += 1;
+    }
+    let rest = [0, 1, 2].map(|a| blocks[a].div_ceil(1 << shifts[a]));
+    (shifts, rest)
+}

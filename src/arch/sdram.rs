@@ -1,0 +1,253 @@
+//! SDRAM banks and their timing rules, as data (Ramulator / DRAMSim style): every constraint is
+//! one row of `timing_rules` — {preceding command, following command, scope, latency} — and
+//! issuing a command raises the "earliest legal cycle" of the commands it constrains. One
+//! command per cycle per module (the command bus). PC100 2-2-2 defaults (brief, section 4).
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SdramTiming {
+    /// CAS latency: READ to data, cycles.
+    pub cl: u32,
+    /// ACT to READ, same bank.
+    pub t_rcd: u32,
+    /// PRE to ACT, same bank.
+    pub t_rp: u32,
+    /// ACT to PRE, same bank (row active time).
+    pub t_ras: u32,
+    /// ACT to ACT, same bank (row cycle).
+    pub t_rc: u32,
+    /// ACT to ACT, different banks of a module.
+    pub t_rrd: u32,
+    /// READ to READ, any bank.
+    pub t_ccd: u32,
+    /// REF to any command (refresh cycle).
+    pub t_rfc: u32,
+    /// Cycles between refreshes (a refresh is due every this many cycles).
+    pub refresh_interval: u32,
+    /// Model refresh at all.
+    pub refresh: bool,
+}
+
+impl SdramTiming {
+    pub fn validate(&self, source: &str) -> Result<()> {
+        for (field, value) in [
+            ("sdram.cl", self.cl),
+            ("sdram.t_rcd", self.t_rcd),
+            ("sdram.t_rp", self.t_rp),
+            ("sdram.t_ras", self.t_ras),
+            ("sdram.t_rc", self.t_rc),
+            ("sdram.t_rrd", self.t_rrd),
+            ("sdram.t_ccd", self.t_ccd),
+            ("sdram.t_rfc", self.t_rfc),
+        ] {
+            if !(1..=64).contains(&value) {
+                return Err(Error::config(
+                    source,
+                    field,
+                    format!("{value} is out of range; allowed 1..=64 cycles"),
+                ));
+            }
+        }
+        if self.refresh_interval <= self.t_rfc + self.t_rp {
+            return Err(Error::config(
+                source,
+                "sdram.refresh_interval",
+                format!(
+                    "{} leaves no time between refreshes; allowed > t_rfc + t_rp = {}",
+                    self.refresh_interval,
+                    self.t_rfc + self.t_rp
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub enum CommandKind {
+    Act,
+    Read,
+    Pre,
+    Ref,
+}
+
+const KINDS: usize = 4;
+
+impl CommandKind {
+    fn index(self) -> usize {
+        self as usize
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum Command {
+    Act {
+        bank: usize,
+        row: u32,
+    },
+    Read {
+        bank: usize,
+        column: u32,
+    },
+    Pre {
+        bank: usize,
+    },
+    /// Refresh; needs every bank closed.
+    Ref,
+}
+
+impl Command {
+    pub fn kind(self) -> CommandKind {
+        match self {
+            Command::Act { .. } => CommandKind::Act,
+            Command::Read { .. } => CommandKind::Read,
+            Command::Pre { .. } => CommandKind::Pre,
+            Command::Ref => CommandKind::Ref,
+        }
+    }
+
+    fn bank(self) -> Option<usize> {
+        match self {
+            Command::Act { bank, .. } | Command::Read { bank, .. } | Command::Pre { bank } => {
+                Some(bank)
+            }
+            Command::Ref => None,
+        }
+    }
+}
+
+/// Which banks a rule constrains, relative to the bank of the preceding command.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum Scope {
+    SameBank,
+    OtherBanks,
+    AllBanks,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct TimingRule {
+    pub preceding: CommandKind,
+    pub following: CommandKind,
+    pub scope: Scope,
+    pub latency: u32,
+}
+
+/// Every timing constraint of the device, in one table.
+pub fn timing_rules(t: &SdramTiming) -> Vec<TimingRule> {
+    use CommandKind::*;
+    use Scope::*;
+    let rule = |preceding, following, scope, latency| TimingRule {
+        preceding,
+        following,
+        scope,
+        latency,
+    };
+    vec![
+        rule(Act, Read, SameBank, t.t_rcd),
+        rule(Act, Pre, SameBank, t.t_ras),
+        rule(Act, Act, SameBank, t.t_rc),
+        rule(Act, Act, OtherBanks, t.t_rrd),
+        rule(Pre, Act, SameBank, t.t_rp),
+        rule(Pre, Ref, AllBanks, t.t_rp),
+        rule(Read, Read, AllBanks, t.t_ccd),
+        // A read must leave its bank open until the access is under way (burst length 1).
+        rule(Read, Pre, SameBank, 1),
+        rule(Ref, Act, AllBanks, t.t_rfc),
+        rule(Ref, Ref, AllBanks, t.t_rfc),
+    ]
+}
+
+#[derive(Clone, Debug)]
+struct Bank {
+    open_row: Option<u32>,
+    /// Earliest legal cycle of each command kind on this bank.
+    earliest: [u64; KINDS],
+}
+
+/// The banks of one module with their timing state.
+#[derive(Clone, Debug)]
+pub struct SdramDevice {
+    banks: Vec<Bank>,
+    rules: Vec<TimingRule>,
+    /// The command bus: one command per cycle.
+    bus_free: u64,
+}
+
+impl SdramDevice {
+    pub fn new(banks: usize, timing: &SdramTiming) -> SdramDevice {
+        SdramDevice {
+            banks: vec![
+                Bank {
+                    open_row: None,
+                    earliest: [0; KINDS],
+                };
+                banks
+            ],
+            rules: timing_rules(timing),
+            bus_free: 0,
+        }
+    }
+
+    pub fn open_row(&self, bank: usize) -> Option<u32> {
+        self.banks[bank].open_row
+    }
+
+    pub fn banks(&self) -> usize {
+        self.banks.len()
+    }
+
+    /// Whether the command's state precondition holds (independent of time).
+    pub fn state_allows(&self, cmd: Command) -> bool {
+        match cmd {
+            Command::Act { bank, .. } => self.banks[bank].open_row.is_none(),
+            Command::Read { bank, .. } | Command::Pre { bank } => {
+                self.banks[bank].open_row.is_some()
+            }
+            Command::Ref => self.banks.iter().all(|b| b.open_row.is_none()),
+        }
+    }
+
+    /// The earliest cycle the timing rules and the command bus allow the command.
+    pub fn earliest(&self, cmd: Command) -> u64 {
+        let k = cmd.kind().index();
+        let timing = match cmd.bank() {
+            Some(bank) => self.banks[bank].earliest[k],
+            None => self.banks.iter().map(|b| b.earliest[k]).max().unwrap_or(0),
+        };
+        timing.max(self.bus_free)
+    }
+
+    pub fn is_legal(&self, cmd: Command, now: u64) -> bool {
+        self.state_allows(cmd) && now >= self.earliest(cmd)
+    }
+
+    /// Issues a legal command at `now`: applies every rule it precedes and its state change.
+    pub fn issue(&mut self, cmd: Command, now: u64) {
+        debug_assert!(self.is_legal(cmd, now), "illegal {cmd:?} at {now}");
+        let kind = cmd.kind();
+        let own = cmd.bank();
+        for rule in self.rules.iter().filter(|r| r.preceding == kind) {
+            for (b, bank) in self.banks.iter_mut().enumerate() {
+                let applies = match (rule.scope, own) {
+                    (Scope::AllBanks, _) | (_, None) => true,
+                    (Scope::SameBank, Some(o)) => b == o,
+                    (Scope::OtherBanks, Some(o)) => b != o,
+                };
+                if applies {
+                    let slot = &mut bank.earliest[rule.following.index()];
+                    *slot = (*slot).max(now + rule.latency as u64);
+                }
+            }
+        }
+        match cmd {
+            Command::Act { bank, row } => self.banks[bank].open_row = Some(row),
+            Command::Pre { bank } => self.banks[bank].open_row = None,
+            Command::Read { .. } | Command::Ref => {}
+        }
+        self.bus_free = now + 1;
+    }
+}

@@ -1,0 +1,337 @@
+//! One SDRAM memory module clock by clock (controller + banks + FIFOs), and `SdramMemory`, the
+//! interleaved modules behind the `VoxelMemory` interface with the sample assembly that waits
+//! for all of a sample's words.
+//!
+//! Controller, one command per cycle at most, in this priority:
+//! 1. refresh, when due: precharge the open banks (one per cycle), then REF (delayed, never
+//!    skipped);
+//! 2. close-page policy: precharge a bank whose row was read and that no queued request hits;
+//! 3. the request the overtaking FIFO selects: READ if its row is open (and the voxel FIFO has a
+//!    free place counting words in flight), else PRE the bank's other row, else ACT its row.
+//!
+//! A word read at cycle t is in the voxel FIFO at t + CL; the sample assembly takes at most one
+//! word per module per cycle. A request pushed at cycle t is seen by the controller at t + 1.
+
+use std::collections::VecDeque;
+
+use super::address_map::{AddressMap, MemoryConfig, RowPolicy, WordAddress};
+use super::overtaking_fifo::{OvertakingFifo, PendingWord};
+use super::sdram::{Command, SdramDevice, SdramTiming};
+use super::voxel_memory::{SampleRequest, VoxelMemory};
+
+/// What one module counted. Cycles are clock cycles.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct ModuleStats {
+    pub reads: u64,
+    /// READs whose row was already open when the request was first served.
+    pub row_hits: u64,
+    /// READs that needed an ACT (including those that needed a PRE first).
+    pub row_misses: u64,
+    /// Row misses that first had to close another row of the bank.
+    pub row_conflicts: u64,
+    pub activates: u64,
+    pub precharges: u64,
+    pub refreshes: u64,
+    /// Cycles with a request queued or a refresh pending.
+    pub busy_cycles: u64,
+    /// Cycles the selected READ waited for a voxel-FIFO place.
+    pub voxel_fifo_full_cycles: u64,
+    /// Sum over reads of (data in the voxel FIFO) − (request entered the address FIFO).
+    pub total_latency_cycles: u64,
+    pub overtakes: u64,
+    pub forced_by_bypass_bound: u64,
+    pub address_fifo_peak: usize,
+}
+
+pub struct SdramModule {
+    device: SdramDevice,
+    fifo: OvertakingFifo,
+    /// Words read: (cycle the data is there, tag), in read order; its length counts in-flight
+    /// reads, so it never exceeds the voxel FIFO depth.
+    voxel_fifo: VecDeque<(u64, u32)>,
+    voxel_depth: usize,
+    cl: u64,
+    policy: RowPolicy,
+    /// Banks read under the close-page policy, to precharge.
+    to_close: Vec<bool>,
+    refresh_interval: Option<u64>,
+    next_refresh: u64,
+    refresh_pending: bool,
+    pub stats: ModuleStats,
+}
+
+impl SdramModule {
+    pub fn new(config: &MemoryConfig, timing: &SdramTiming) -> SdramModule {
+        let refresh_interval = timing.refresh.then_some(timing.refresh_interval as u64);
+        SdramModule {
+            device: SdramDevice::new(config.banks as usize, timing),
+            fifo: OvertakingFifo::new(
+                config.address_fifo_depth,
+                config.overtaking,
+                config.overtaking_window,
+                config.max_bypass,
+            ),
+            voxel_fifo: VecDeque::with_capacity(config.voxel_fifo_depth),
+            voxel_depth: config.voxel_fifo_depth,
+            cl: timing.cl as u64,
+            policy: config.row_policy,
+            to_close: vec![false; config.banks as usize],
+            refresh_interval,
+            next_refresh: refresh_interval.unwrap_or(u64::MAX),
+            refresh_pending: false,
+            stats: ModuleStats::default(),
+        }
+    }
+
+    pub fn can_accept(&self) -> bool {
+        self.fifo.can_accept()
+    }
+
+    pub fn push(&mut self, tag: u32, addr: WordAddress, now: u64) {
+        self.fifo.push(PendingWord {
+            tag,
+            addr,
+            entered: now,
+            bypassed: 0,
+            activated: false,
+            precharged: false,
+        });
+    }
+
+    fn try_issue(&mut self, cmd: Command, now: u64) -> bool {
+        if self.device.is_legal(cmd, now) {
+            self.device.issue(cmd, now);
+            match cmd {
+                Command::Act { .. } => self.stats.activates += 1,
+                Command::Pre { .. } => self.stats.precharges += 1,
+                Command::Ref => self.stats.refreshes += 1,
+                Command::Read { .. } => self.stats.reads += 1,
+            }
+            true
+        } else {
+            false
+        }
+    }
+
+    /// One controller cycle.
+    pub fn step(&mut self, now: u64) {
+        if now >= self.next_refresh {
+            self.refresh_pending = true;
+            self.next_refresh += self.refresh_interval.unwrap_or(u64::MAX);
+        }
+        if !self.fifo.is_empty() || self.refresh_pending {
+            self.stats.busy_cycles += 1;
+        }
+        if self.refresh_pending {
+            let open = (0..self.device.banks()).find(|&b| self.device.open_row(b).is_some());
+            match open {
+                Some(bank) => {
+                    self.try_issue(Command::Pre { bank }, now);
+                }
+                None => {
+                    if self.try_issue(Command::Ref, now) {
+                        self.refresh_pending = false;
+                    }
+                }
+            }
+            return;
+        }
+        if self.policy == RowPolicy::Close {
+            for bank in 0..self.to_close.len() {
+                if !self.to_close[bank] {
+                    continue;
+                }
+                match self.device.open_row(bank) {
+                    Some(row) if !self.fifo.window_hits(bank as u32, row) => {
+                        if self.try_issue(Command::Pre { bank }, now) {
+                            self.to_close[bank] = false;
+                            return;
+                        }
+                    }
+                    _ => self.to_close[bank] = false,
+                }
+            }
+        }
+        let device = &self.device;
+        let Some(index) = self
+            .fifo
+            .select(|a| device.open_row(a.bank as usize) == Some(a.row))
+        else {
+            return;
+        };
+        let request = *self.fifo.get_mut(index);
+        let bank = request.addr.bank as usize;
+        match self.device.open_row(bank) {
+            Some(row) if row == request.addr.row => {
+                if self.voxel_fifo.len() >= self.voxel_depth {
+                    self.stats.voxel_fifo_full_cycles += 1;
+                    return;
+                }
+                let read = Command::Read {
+                    bank,
+                    column: request.addr.column,
+                };
+                if self.try_issue(read, now) {
+                    let served = self.fifo.take(index);
+                    let ready = now + self.cl;
+                    self.voxel_fifo.push_back((ready, served.tag));
+                    self.stats.total_latency_cycles += ready - served.entered;
+                    if served.activated {
+                        self.stats.row_misses += 1;
+                        self.stats.row_conflicts += served.precharged as u64;
+                    } else {
+                        self.stats.row_hits += 1;
+                    }
+                    if self.policy == RowPolicy::Close {
+                        self.to_close[bank] = true;
+                    }
+                }
+            }
+            Some(_) => {
+                if self.try_issue(Command::Pre { bank }, now) {
+                    self.fifo.get_mut(index).precharged = true;
+                }
+            }
+            None => {
+                let act = Command::Act {
+                    bank,
+                    row: request.addr.row,
+                };
+                if self.try_issue(act, now) {
+                    self.fifo.get_mut(index).activated = true;
+                }
+            }
+        }
+    }
+
+    /// The oldest word whose data is in the voxel FIFO by `now`.
+    pub fn pop_word(&mut self, now: u64) -> Option<u32> {
+        match self.voxel_fifo.front() {
+            Some(&(ready, tag)) if ready <= now => {
+                self.voxel_fifo.pop_front();
+                Some(tag)
+            }
+            _ => None,
+        }
+    }
+
+    /// The earliest cycle after `now` at which this module could change anything.
+    pub fn next_event(&self, now: u64) -> Option<u64> {
+        if !self.fifo.is_empty() || self.refresh_pending || self.to_close.iter().any(|&c| c) {
+            return Some(now + 1);
+        }
+        let data = self
+            .voxel_fifo
+            .front()
+            .map(|&(ready, _)| ready.max(now + 1));
+        let refresh = self
+            .refresh_interval
+            .map(|_| self.next_refresh.max(now + 1));
+        data.into_iter().chain(refresh).min()
+    }
+
+    pub fn is_idle(&self) -> bool {
+        self.fifo.is_empty() && self.voxel_fifo.is_empty()
+    }
+
+    /// Final statistics (folds in the FIFO's counters).
+    pub fn final_stats(&self) -> ModuleStats {
+        let mut s = self.stats.clone();
+        s.overtakes = self.fifo.overtakes;
+        s.forced_by_bypass_bound = self.fifo.forced;
+        s.address_fifo_peak = self.fifo.peak;
+        s
+    }
+}
+
+/// The interleaved SDRAM modules as the pipeline's voxel memory.
+pub struct SdramMemory {
+    map: AddressMap,
+    modules: Vec<SdramModule>,
+    /// Words still missing per tag (tags are compositing-buffer entry ids).
+    missing: Vec<u8>,
+    clock_mhz: f64,
+}
+
+impl SdramMemory {
+    pub fn new(
+        config: &MemoryConfig,
+        timing: &SdramTiming,
+        dims: [usize; 3],
+        clock_mhz: f64,
+    ) -> Self {
+        SdramMemory {
+            map: AddressMap::new(config, dims),
+            modules: (0..config.modules())
+                .map(|_| SdramModule::new(config, timing))
+                .collect(),
+            missing: Vec::new(),
+            clock_mhz,
+        }
+    }
+
+    pub fn module_stats(&self) -> Vec<ModuleStats> {
+        self.modules.iter().map(SdramModule::final_stats).collect()
+    }
+}
+
+impl VoxelMemory for SdramMemory {
+    fn can_accept(&self, request: &SampleRequest) -> bool {
+        let (words, n) = self.map.sample_words(request.base);
+        words[..n]
+            .iter()
+            .all(|w| self.modules[w.module].can_accept())
+    }
+
+    fn push(&mut self, request: SampleRequest, now: u64) {
+        let (words, n) = self.map.sample_words(request.base);
+        let tag = request.tag as usize;
+        if self.missing.len() <= tag {
+            self.missing.resize(tag + 1, 0);
+        }
+        self.missing[tag] = n as u8;
+        for w in &words[..n] {
+            self.modules[w.module].push(request.tag as u32, *w, now);
+        }
+    }
+
+    fn step(&mut self, now: u64, completed: &mut Vec<u64>) {
+        for module in &mut self.modules {
+            module.step(now);
+            if let Some(tag) = module.pop_word(now) {
+                let missing = &mut self.missing[tag as usize];
+                *missing -= 1;
+                if *missing == 0 {
+                    completed.push(tag as u64);
+                }
+            }
+        }
+    }
+
+    fn is_idle(&self) -> bool {
+        self.modules.iter().all(SdramModule::is_idle)
+    }
+
+    fn next_event(&self, now: u64) -> Option<u64> {
+        self.modules.iter().filter_map(|m| m.next_event(now)).min()
+    }
+
+    fn stats_json(&self) -> serde_json::Value {
+        let modules = self.module_stats();
+        let sum = |f: fn(&ModuleStats) -> u64| modules.iter().map(f).sum::<u64>();
+        let reads = sum(|s| s.reads).max(1) as f64;
+        let period_ns = 1e3 / self.clock_mhz;
+        serde_json::json!({
+            "model": "sdram",
+            "reads": sum(|s| s.reads),
+            "row_hits": sum(|s| s.row_hits),
+            "row_misses": sum(|s| s.row_misses),
+            "row_hit_rate": sum(|s| s.row_hits) as f64 / reads,
+            "refreshes": sum(|s| s.refreshes),
+            // Module busy time per word read: the published "average memory cost per voxel access".
+            "avg_ns_per_voxel_access": sum(|s| s.busy_cycles) as f64 / reads * period_ns,
+            "avg_access_latency_cycles": sum(|s| s.total_latency_cycles) as f64 / reads,
+            "modules": modules,
+        })
+    }
+}

@@ -1,0 +1,417 @@
+//! SDRAM timing rules (each illegal one cycle early, legal on time), closed-form latencies of a
+//! module, the overtaking FIFO, and the cycle model with SDRAM against the functional model.
+
+mod common;
+
+use vizsim::arch::address_map::{AddressMap, Mapping, MemoryConfig, RowPolicy, WordAddress};
+use vizsim::arch::pipeline::simulate;
+use vizsim::arch::sdram::{timing_rules, Command, SdramDevice, SdramTiming};
+use vizsim::arch::sdram_module::{SdramMemory, SdramModule};
+use vizsim::camera::{Projection, View};
+use vizsim::config::HardwareConfig;
+use vizsim::functional::renderer::{FixedRenderer, Leaping};
+use vizsim::occupancy::OccupancyKind;
+use vizsim::render::RenderSettings;
+
+fn timing() -> SdramTiming {
+    HardwareConfig::default_config().sdram
+}
+
+fn memory_config() -> MemoryConfig {
+    HardwareConfig::default_config().memory
+}
+
+/// `follow` is illegal at `at - 1` and legal at `at`, after `setup` ran on a fresh device.
+fn assert_tight(setup: &[(Command, u64)], follow: Command, at: u64, rule: &str) {
+    let mut d = SdramDevice::new(4, &timing());
+    for &(cmd, t) in setup {
+        d.issue(cmd, t);
+    }
+    assert!(!d.is_legal(follow, at - 1), "{rule}: legal one cycle early");
+    assert!(d.is_legal(follow, at), "{rule}: illegal on time");
+    assert_eq!(d.earliest(follow), at, "{rule}");
+}
+
+#[test]
+fn every_timing_rule_is_tight() {
+    let t = timing();
+    let act = |bank, row| Command::Act { bank, row };
+    let read = |bank| Command::Read { bank, column: 0 };
+    let pre = |bank| Command::Pre { bank };
+    let t0 = 10u64;
+    let c = |x: u32| x as u64;
+    assert_tight(
+        &[(act(0, 1), t0)],
+        read(0),
+        t0 + c(t.t_rcd),
+        "ACT->READ tRCD",
+    );
+    assert_tight(&[(act(0, 1), t0)], pre(0), t0 + c(t.t_ras), "ACT->PRE tRAS");
+    assert_tight(
+        &[(act(0, 1), t0)],
+        act(1, 1),
+        t0 + c(t.t_rrd),
+        "ACT->ACT other bank tRRD",
+    );
+    // ACT->ACT same bank: tRC, and the bank must be closed again (PRE at tRAS; tRP after it).
+    let pre_at = t0 + c(t.t_ras);
+    assert_tight(
+        &[(act(0, 1), t0), (pre(0), pre_at)],
+        act(0, 2),
+        (t0 + c(t.t_rc)).max(pre_at + c(t.t_rp)),
+        "ACT->ACT same bank tRC / PRE->ACT tRP",
+    );
+    assert_tight(
+        &[(act(0, 1), t0), (pre(0), pre_at)],
+        Command::Ref,
+        pre_at + c(t.t_rp),
+        "PRE->REF tRP",
+    );
+    let read_at = t0 + c(t.t_rcd);
+    assert_tight(
+        &[
+            (act(0, 1), t0),
+            (act(1, 1), t0 + c(t.t_rrd)),
+            (read(0), read_at + 2),
+        ],
+        read(1),
+        read_at + 2 + c(t.t_ccd).max(1),
+        "READ->READ tCCD",
+    );
+    assert_tight(
+        &[(Command::Ref, t0)],
+        act(2, 5),
+        t0 + c(t.t_rfc),
+        "REF->ACT tRFC",
+    );
+    assert_tight(
+        &[(Command::Ref, t0)],
+        Command::Ref,
+        t0 + c(t.t_rfc),
+        "REF->REF tRFC",
+    );
+    // READ->PRE (1 cycle) hides behind tRAS at PC100 timing: show it with a short tRAS.
+    let mut short = t.clone();
+    short.t_ras = 1;
+    let mut d = SdramDevice::new(4, &short);
+    d.issue(act(0, 1), t0);
+    d.issue(read(0), t0 + c(t.t_rcd));
+    assert!(!d.is_legal(pre(0), t0 + c(t.t_rcd)));
+    assert_eq!(d.earliest(pre(0)), t0 + c(t.t_rcd) + 1, "READ->PRE");
+    // The ten rules of the table, each exercised above.
+    assert_eq!(timing_rules(&t).len(), 10);
+}
+
+#[test]
+fn state_rules_and_the_command_bus() {
+    let mut d = SdramDevice::new(4, &timing());
+    assert!(
+        !d.is_legal(Command::Read { bank: 0, column: 0 }, 100),
+        "READ on a closed bank"
+    );
+    d.issue(Command::Act { bank: 0, row: 3 }, 100);
+    assert!(
+        !d.is_legal(Command::Act { bank: 0, row: 4 }, 200),
+        "ACT on an open bank"
+    );
+    assert!(!d.is_legal(Command::Ref, 200), "REF with a bank open");
+    // One command per cycle per module: nothing else at 100.
+    assert!(!d.is_legal(Command::Act { bank: 3, row: 1 }, 100));
+}
+
+/// Cycles from pushing one request at cycle 0 to its word leaving the module.
+fn isolated_latency(prepare: impl Fn(&mut SdramModule) -> u64, addr: WordAddress) -> u64 {
+    let mut t = timing();
+    t.refresh = false;
+    let mut m = SdramModule::new(&memory_config(), &t);
+    let start = prepare(&mut m);
+    m.push(7, addr, start);
+    for now in start + 1..start + 100 {
+        m.step(now);
+        if let Some(tag) = m.pop_word(now) {
+            assert_eq!(tag, 7);
+            return now - start;
+        }
+    }
+    panic!("no data");
+}
+
+fn addr(bank: u32, row: u32) -> WordAddress {
+    WordAddress {
+        module: 0,
+        bank,
+        row,
+        column: 0,
+    }
+}
+
+#[test]
+fn isolated_accesses_cost_what_the_timing_says() {
+    let t = timing();
+    // The address FIFO adds one cycle: a request pushed at t is seen at t + 1.
+    let hit = isolated_latency(
+        |m| {
+            m.push(1, addr(0, 5), 0);
+            (1..40).for_each(|now| {
+                m.step(now);
+                m.pop_word(now);
+            });
+            40
+        },
+        addr(0, 5),
+    );
+    assert_eq!(hit, 1 + t.cl as u64, "row hit");
+    let closed = isolated_latency(|_| 0, addr(0, 5));
+    assert_eq!(
+        closed,
+        1 + (t.t_rcd + t.cl) as u64,
+        "closed bank: tRCD + CL"
+    );
+    let conflict = isolated_latency(
+        |m| {
+            m.push(1, addr(0, 9), 0);
+            (1..40).for_each(|now| {
+                m.step(now);
+                m.pop_word(now);
+            });
+            40
+        },
+        addr(0, 5),
+    );
+    assert_eq!(
+        conflict,
+        1 + (t.t_rp + t.t_rcd + t.cl) as u64,
+        "row conflict: tRP + tRCD + CL"
+    );
+}
+
+#[test]
+fn streaming_row_hits_deliver_one_word_per_cycle() {
+    let mut t = timing();
+    t.refresh = false;
+    let mut m = SdramModule::new(&memory_config(), &t);
+    let n = 200u64;
+    let (mut pushed, mut got, mut last) = (0u64, 0u64, 0u64);
+    for now in 0..1000 {
+        m.step(now);
+        if m.pop_word(now).is_some() {
+            got += 1;
+            last = now;
+        }
+        if pushed < n && m.can_accept() {
+            m.push(
+                pushed as u32,
+                WordAddress {
+                    module: 0,
+                    bank: 0,
+                    row: 3,
+                    column: pushed as u32,
+                },
+                now,
+            );
+            pushed += 1;
+        }
+    }
+    assert_eq!(got, n);
+    // First word after ACT (tRCD) and CL, then one per cycle.
+    assert_eq!(last, 1 + (t.t_rcd + t.cl) as u64 + (n - 1), "stream end");
+}
+
+#[test]
+fn refresh_happens_every_interval_and_costs_its_time() {
+    let t = timing();
+    let mut m = SdramModule::new(&memory_config(), &t);
+    let cycles = 20_000u64;
+    for now in 0..cycles {
+        m.step(now);
+    }
+    let expected = cycles / t.refresh_interval as u64;
+    assert_eq!(m.final_stats().refreshes, expected);
+    let mut off = t.clone();
+    off.refresh = false;
+    let mut m = SdramModule::new(&memory_config(), &off);
+    (0..cycles).for_each(|now| m.step(now));
+    assert_eq!(m.final_stats().refreshes, 0);
+}
+
+/// Two rows of one bank interleaved, A B A B ...: overtaking groups them.
+fn ping_pong(overtaking: bool) -> (u64, Vec<u32>, u32) {
+    let mut config = memory_config();
+    config.overtaking = overtaking;
+    let mut t = timing();
+    t.refresh = false;
+    let mut m = SdramModule::new(&config, &t);
+    let n = 64u32;
+    let mut order = Vec::new();
+    let mut pushed = 0;
+    for now in 0..5000 {
+        m.step(now);
+        if let Some(tag) = m.pop_word(now) {
+            order.push(tag);
+        }
+        if pushed < n && m.can_accept() {
+            m.push(
+                pushed,
+                WordAddress {
+                    module: 0,
+                    bank: 1,
+                    row: pushed % 2,
+                    column: pushed,
+                },
+                now,
+            );
+            pushed += 1;
+        }
+    }
+    assert_eq!(order.len(), n as usize);
+    // Largest displacement of a request towards the back: how often it was overtaken at most.
+    let max_late = order
+        .iter()
+        .enumerate()
+        .map(|(pos, &tag)| pos.saturating_sub(tag as usize) as u32)
+        .max()
+        .unwrap();
+    (m.final_stats().row_misses, order, max_late)
+}
+
+#[test]
+fn overtaking_saves_row_misses_within_the_bypass_bound() {
+    let (misses_plain, order_plain, _) = ping_pong(false);
+    let (misses_overtaking, _, max_late) = ping_pong(true);
+    assert!(
+        misses_overtaking * 2 < misses_plain,
+        "{misses_overtaking} vs {misses_plain}"
+    );
+    assert_eq!(
+        order_plain,
+        (0..64).collect::<Vec<_>>(),
+        "disabled: request order"
+    );
+    assert!(
+        max_late <= memory_config().max_bypass,
+        "a request overtaken {max_late} times"
+    );
+}
+
+#[test]
+fn mappings_touch_one_word_per_module_and_check_capacity() {
+    for (mapping, words) in [
+        (Mapping::Replicated4, 4),
+        (Mapping::Interleaved8, 8),
+        (Mapping::Linear4, 4),
+    ] {
+        let mut config = memory_config();
+        config.mapping = mapping;
+        let map = AddressMap::new(&config, [64, 64, 64]);
+        let (w, n) = map.sample_words([11, 20, 33]);
+        assert_eq!(n, words, "{mapping:?}");
+        let mut modules: Vec<usize> = w[..n].iter().map(|a| a.module).collect();
+        modules.sort();
+        modules.dedup();
+        assert_eq!(modules.len(), words, "{mapping:?}: distinct modules");
+    }
+    // replicated4, 8x8x8-word blocks: a 16x16x8-voxel neighbourhood lies in one row per module.
+    let map = AddressMap::new(&memory_config(), [64, 64, 64]);
+    let mut rows = std::collections::HashSet::new();
+    for z in 0..7 {
+        for y in (0..15).step_by(3) {
+            for x in (0..15).step_by(3) {
+                let (w, n) = map.sample_words([x, y, z]);
+                for a in &w[..n] {
+                    rows.insert((a.module, a.bank, a.row));
+                }
+            }
+        }
+    }
+    assert_eq!(rows.len(), 4);
+    let mut small = memory_config();
+    small.rows = 2;
+    let err = small
+        .check_covers([256, 256, 256], "test")
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("memory.rows"), "{err}");
+    let mut bad = memory_config();
+    bad.address_fifo_depth = 0;
+    assert!(bad
+        .validate("t")
+        .unwrap_err()
+        .to_string()
+        .contains("memory.address_fifo_depth"));
+    bad = memory_config();
+    bad.banks = 3;
+    assert!(bad
+        .validate("t")
+        .unwrap_err()
+        .to_string()
+        .contains("memory.banks"));
+    bad = memory_config();
+    bad.overtaking_window = 17;
+    assert!(bad
+        .validate("t")
+        .unwrap_err()
+        .to_string()
+        .contains("memory.overtaking_window"));
+    bad = memory_config();
+    bad.row_policy = RowPolicy::Close;
+    bad.validate("t").unwrap();
+}
+
+#[test]
+fn cycle_model_with_sdram_equals_the_functional_image() {
+    let volume = common::ball(48);
+    let tf = common::tf(&[
+        (0.0, [0.0; 4]),
+        (60.0, [0.0; 4]),
+        (200.0, [1.0, 0.8, 0.2, 0.8]),
+    ]);
+    let mut config = HardwareConfig::default_config();
+    config.occupancy.sram_bits = 1 << 24;
+    for (view, projection, leaping, policy, overtaking) in [
+        (
+            View::Front,
+            Projection::Ortho,
+            Leaping::None,
+            RowPolicy::Open,
+            true,
+        ),
+        (
+            View::Orbit { k: 7, n: 72 },
+            Projection::Persp,
+            Leaping::Occupancy {
+                subcube: 4,
+                hierarchy: true,
+                kind: OccupancyKind::Class,
+            },
+            RowPolicy::Close,
+            false,
+        ),
+    ] {
+        config.memory.row_policy = policy;
+        config.memory.overtaking = overtaking;
+        let cam = common::camera(&volume, view, projection, 32);
+        let renderer =
+            FixedRenderer::new(&volume, &tf, &RenderSettings::default(), &config, leaping).unwrap();
+        let run = |skip_dead| {
+            let mut memory = SdramMemory::new(&config.memory, &config.sdram, volume.dims, 100.0);
+            simulate(
+                &renderer,
+                &cam,
+                &renderer.skipper(),
+                &mut memory,
+                &config,
+                skip_dead,
+            )
+            .unwrap()
+        };
+        let (jumped, ticked) = (run(true), run(false));
+        assert!(
+            jumped.frame.pixels == renderer.render(&cam).pixels,
+            "{view:?} {policy:?}"
+        );
+        let mut a = jumped.stats.clone();
+        a.skipped_cycles = 0;
+        assert_eq!(a, ticked.stats, "jumping equals ticking with SDRAM");
+        assert!(jumped.stats.stall_cycles.memory > 0 || jumped.stats.cycles > jumped.stats.steps);
+    }
+}
