@@ -220,3 +220,24 @@ fn same_input_same_cycles() {
     assert_eq!(a.stats, b.stats);
     assert_eq!(a.frame.pixels, b.frame.pixels);
 }
+
+#[test]
+fn watchdog_stops_a_run_that_makes_no_progress_with_a_dump() {
+    let volume = common::ball(24);
+    let tf = ball_tf();
+    let mut config = config();
+    config.compositing.watchdog_cycles = 100;
+    let cam = camera(&volume, View::Front, Projection::Ortho, 8);
+    let renderer = FixedRenderer::new(&volume, &tf, &RenderSettings::default(), &config, Leaping::None).unwrap();
+    // A memory that answers only after 1000 cycles: nothing moves for longer than the watchdog.
+    let mut memory = IdealMemory::new(1000);
+    let err = simulate(&renderer, &cam, &renderer.skipper(), &mut memory, &config, true)
+        .err()
+        .expect("watchdog must fire")
+        .to_string();
+    assert!(err.contains("watchdog") && err.contains("ray queue") && err.contains("compositing buffer"), "{err}");
+    // With a patient watchdog the same run completes.
+    config.compositing.watchdog_cycles = 10_000;
+    let mut memory = IdealMemory::new(1000);
+    assert!(simulate(&renderer, &cam, &renderer.skipper(), &mut memory, &config, true).is_ok());
+}

@@ -198,17 +198,24 @@ pub struct WordAddress {
 pub struct AddressMap {
     config: MemoryConfig,
     local: [usize; 3],
-    blocks: [usize; 3],
+    /// log2 of the block edge per axis (blocks are powers of two).
+    block_log2: [u32; 3],
+    /// Low block-coordinate bits per axis that form the bank, and the rest's grid for rows.
+    bank_shifts: [u32; 3],
+    row_grid: [usize; 3],
 }
 
 impl AddressMap {
     pub fn new(config: &MemoryConfig, dims: [usize; 3]) -> AddressMap {
         let local = config.local_dims(dims);
         let blocks = [0, 1, 2].map(|a| local[a].div_ceil(config.block[a] as usize));
+        let (bank_shifts, row_grid) = bank_split(blocks, config.banks);
         AddressMap {
             config: config.clone(),
             local,
-            blocks,
+            block_log2: config.block.map(|b| b.trailing_zeros()),
+            bank_shifts,
+            row_grid,
         }
     }
 
@@ -261,10 +268,9 @@ impl AddressMap {
                 }
             }
             _ => {
-                let b = c.block.map(|v| v as usize);
-                let block = [l[0] / b[0], l[1] / b[1], l[2] / b[2]];
-                let o = [l[0] % b[0], l[1] % b[1], l[2] % b[2]];
-                let (shifts, rest) = bank_split(self.blocks, c.banks);
+                let lg = self.block_log2;
+                let block = [l[0] >> lg[0], l[1] >> lg[1], l[2] >> lg[2]];
+                let o = [0, 1, 2].map(|a| l[a] & ((1 << lg[a]) - 1));
                 let mut bank = 0usize;
                 let mut used = [0u32; 3];
                 for bit in 0..c.banks.trailing_zeros() {
@@ -272,12 +278,13 @@ impl AddressMap {
                     bank |= ((block[axis] >> used[axis]) & 1) << bit;
                     used[axis] += 1;
                 }
-                let r = [0, 1, 2].map(|a| block[a] >> shifts[a]);
+                let r = [0, 1, 2].map(|a| block[a] >> self.bank_shifts[a]);
+                let rest = self.row_grid;
                 WordAddress {
                     module,
                     bank: bank as u32,
                     row: (r[0] + rest[0] * (r[1] + rest[1] * r[2])) as u32,
-                    column: (o[0] + b[0] * (o[1] + b[1] * o[2])) as u32,
+                    column: (o[0] + ((o[1] + (o[2] << lg[1])) << lg[0])) as u32,
                 }
             }
         }

@@ -172,7 +172,8 @@ struct Bank {
 #[derive(Clone, Debug)]
 pub struct SdramDevice {
     banks: Vec<Bank>,
-    rules: Vec<TimingRule>,
+    /// The rules, grouped by preceding command kind (the table, indexed for `issue`).
+    rules: [Vec<TimingRule>; KINDS],
     /// The command bus: one command per cycle.
     bus_free: u64,
 }
@@ -187,7 +188,12 @@ impl SdramDevice {
                 };
                 banks
             ],
-            rules: timing_rules(timing),
+            rules: {
+                let table = timing_rules(timing);
+                [CommandKind::Act, CommandKind::Read, CommandKind::Pre, CommandKind::Ref].map(|k| {
+                    table.iter().copied().filter(|r| r.preceding == k).collect()
+                })
+            },
             bus_free: 0,
         }
     }
@@ -230,7 +236,7 @@ impl SdramDevice {
         debug_assert!(self.is_legal(cmd, now), "illegal {cmd:?} at {now}");
         let kind = cmd.kind();
         let own = cmd.bank();
-        for rule in self.rules.iter().filter(|r| r.preceding == kind) {
+        for rule in &self.rules[kind.index()] {
             for (b, bank) in self.banks.iter_mut().enumerate() {
                 let applies = match (rule.scope, own) {
                     (Scope::AllBanks, _) | (_, None) => true,

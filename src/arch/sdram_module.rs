@@ -247,6 +247,8 @@ impl SdramModule {
 /// The interleaved SDRAM modules as the pipeline's voxel memory.
 pub struct SdramMemory {
     map: AddressMap,
+    /// The last sample's words: a stalled sample is asked about every cycle.
+    last_words: std::cell::Cell<Option<([usize; 3], [WordAddress; 8], usize)>>,
     modules: Vec<SdramModule>,
     /// Words still missing per tag (tags are compositing-buffer entry ids).
     missing: Vec<u8>,
@@ -262,11 +264,23 @@ impl SdramMemory {
     ) -> Self {
         SdramMemory {
             map: AddressMap::new(config, dims),
+            last_words: std::cell::Cell::new(None),
             modules: (0..config.modules())
                 .map(|_| SdramModule::new(config, timing))
                 .collect(),
             missing: Vec::new(),
             clock_mhz,
+        }
+    }
+
+    fn words(&self, base: [usize; 3]) -> ([WordAddress; 8], usize) {
+        match self.last_words.get() {
+            Some((b, words, n)) if b == base => (words, n),
+            _ => {
+                let (words, n) = self.map.sample_words(base);
+                self.last_words.set(Some((base, words, n)));
+                (words, n)
+            }
         }
     }
 
@@ -284,7 +298,7 @@ impl VoxelMemory for SdramMemory {
     }
 
     fn push(&mut self, request: SampleRequest, now: u64) {
-        let (words, n) = self.map.sample_words(request.base);
+        let (words, n) = self.words(request.base);
         let tag = request.tag as usize;
         if self.missing.len() <= tag {
             self.missing.resize(tag + 1, 0);
