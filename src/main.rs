@@ -233,6 +233,12 @@ struct SimArgs {
     /// latency, unlimited bandwidth: the bound with free memory).
     #[arg(long, value_enum, default_value = "sdram")]
     memory: MemoryArg,
+    /// Write a VCD waveform (GTKWave, Surfer) of the cycles given by --vcd-cycles.
+    #[arg(long)]
+    vcd: Option<PathBuf>,
+    /// Cycle window of the waveform, A..B.
+    #[arg(long, default_value = "0..10000")]
+    vcd_cycles: String,
     /// Latency of the ideal memory, in cycles.
     #[arg(long, default_value_t = 6)]
     ideal_latency: u64,
@@ -578,6 +584,14 @@ fn sim(args: SimArgs) -> Result<()> {
         )),
         MemoryArg::Ideal => Box::new(IdealMemory::new(args.ideal_latency)),
     };
+    let mut waveform = match &args.vcd {
+        Some(path) => Some(vizsim::arch::trace::Waveform::create(
+            path,
+            config.memory.modules(),
+            vizsim::arch::trace::parse_window(&args.vcd_cycles)?,
+        )?),
+        None => None,
+    };
     let start = Instant::now();
     let result = simulate(
         &renderer,
@@ -586,7 +600,11 @@ fn sim(args: SimArgs) -> Result<()> {
         &mut memory,
         &config,
         true,
+        waveform.as_mut(),
     )?;
+    if let Some(w) = waveform {
+        w.finish()?;
+    }
     let wall = start.elapsed().as_secs_f64();
     let s = &result.stats;
     let frame_time_ns = s.cycles as f64 * 1e3 / config.clock.frequency_mhz;

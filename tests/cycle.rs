@@ -45,6 +45,7 @@ fn run(
         &mut memory,
         config,
         skip_dead,
+        None,
     )
     .unwrap()
 }
@@ -228,16 +229,43 @@ fn watchdog_stops_a_run_that_makes_no_progress_with_a_dump() {
     let mut config = config();
     config.compositing.watchdog_cycles = 100;
     let cam = camera(&volume, View::Front, Projection::Ortho, 8);
-    let renderer = FixedRenderer::new(&volume, &tf, &RenderSettings::default(), &config, Leaping::None).unwrap();
+    let renderer = FixedRenderer::new(
+        &volume,
+        &tf,
+        &RenderSettings::default(),
+        &config,
+        Leaping::None,
+    )
+    .unwrap();
     // A memory that answers only after 1000 cycles: nothing moves for longer than the watchdog.
     let mut memory = IdealMemory::new(1000);
-    let err = simulate(&renderer, &cam, &renderer.skipper(), &mut memory, &config, true)
-        .err()
-        .expect("watchdog must fire")
-        .to_string();
-    assert!(err.contains("watchdog") && err.contains("ray queue") && err.contains("compositing buffer"), "{err}");
+    let err = simulate(
+        &renderer,
+        &cam,
+        &renderer.skipper(),
+        &mut memory,
+        &config,
+        true,
+        None,
+    )
+    .err()
+    .expect("watchdog must fire")
+    .to_string();
+    assert!(
+        err.contains("watchdog") && err.contains("ray queue") && err.contains("compositing buffer"),
+        "{err}"
+    );
     // With a patient watchdog the same run completes.
     config.compositing.watchdog_cycles = 10_000;
     let mut memory = IdealMemory::new(1000);
-    assert!(simulate(&renderer, &cam, &renderer.skipper(), &mut memory, &config, true).is_ok());
+    assert!(simulate(
+        &renderer,
+        &cam,
+        &renderer.skipper(),
+        &mut memory,
+        &config,
+        true,
+        None
+    )
+    .is_ok());
 }

@@ -401,6 +401,7 @@ fn cycle_model_with_sdram_equals_the_functional_image() {
                 &mut memory,
                 &config,
                 skip_dead,
+                None,
             )
             .unwrap()
         };
@@ -414,4 +415,69 @@ fn cycle_model_with_sdram_equals_the_functional_image() {
         assert_eq!(a, ticked.stats, "jumping equals ticking with SDRAM");
         assert!(jumped.stats.stall_cycles.memory > 0 || jumped.stats.cycles > jumped.stats.steps);
     }
+}
+
+#[test]
+fn waveform_records_its_window_and_changes_no_result() {
+    use vizsim::arch::trace::Waveform;
+    let volume = common::ball(32);
+    let tf = common::tf(&[
+        (0.0, [0.0; 4]),
+        (60.0, [0.0; 4]),
+        (200.0, [1.0, 0.8, 0.2, 0.8]),
+    ]);
+    let config = HardwareConfig::default_config();
+    let cam = common::camera(&volume, View::Orbit { k: 3, n: 72 }, Projection::Ortho, 24);
+    let renderer = FixedRenderer::new(
+        &volume,
+        &tf,
+        &RenderSettings::default(),
+        &config,
+        Leaping::None,
+    )
+    .unwrap();
+    let dir = std::env::temp_dir().join(format!("vizsim-vcd-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("frame.vcd");
+    let run = |waveform: Option<&mut Waveform>| {
+        let mut memory = SdramMemory::new(&config.memory, &config.sdram, volume.dims, 100.0);
+        simulate(
+            &renderer,
+            &cam,
+            &renderer.skipper(),
+            &mut memory,
+            &config,
+            true,
+            waveform,
+        )
+        .unwrap()
+    };
+    let mut waveform = Waveform::create(&path, 4, 100..400).unwrap();
+    let traced = run(Some(&mut waveform));
+    waveform.finish().unwrap();
+    let plain = run(None);
+    assert_eq!(traced.stats.cycles, plain.stats.cycles);
+    assert_eq!(traced.stats.composited, plain.stats.composited);
+    assert!(traced.frame.pixels == plain.frame.pixels);
+    let text = std::fs::read_to_string(&path).unwrap();
+    for signal in [
+        "ray_queue_occupancy",
+        "issue_valid",
+        "compositing_buffer",
+        "ert_event",
+        "module3",
+        "command",
+        "address_fifo",
+    ] {
+        assert!(text.contains(signal), "missing {signal}");
+    }
+    let stamps: Vec<u64> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix('#'))
+        .map(|t| t.parse().unwrap())
+        .collect();
+    assert_eq!(stamps.first(), Some(&100));
+    assert_eq!(stamps.last(), Some(&399));
+    assert_eq!(stamps.len(), 300, "every cycle of the window");
+    assert!(!dir.join("frame.vcd.tmp").exists());
 }

@@ -10,4 +10,5 @@ pub mod ray_queue;
 pub mod sdram;
 pub mod sdram_module;
 pub mod skip_unit;
+pub mod trace;
 pub mod voxel_memory;

@@ -24,6 +24,7 @@ use std::collections::VecDeque;
 use super::compositing_buffer::CompositingBuffer;
 use super::ray_queue::{RayQueue, RaySlot};
 use super::skip_unit::{PositionUpdate, SkipUnit};
+use super::trace::{Probe, Waveform};
 use super::voxel_memory::{SampleRequest, VoxelMemory};
 use crate::camera::Camera;
 use crate::config::HardwareConfig;
@@ -102,7 +103,8 @@ struct StagedSample {
 
 /// Simulates one frame. `skipper` is the space-skipping strategy (shared with the functional
 /// model), `memory` the voxel memory model. `skip_dead_cycles`: jump over cycles in which
-/// nothing can happen (same results as ticking every cycle, only faster).
+/// nothing can happen (same results as ticking every cycle, only faster). `waveform`: record
+/// the signals of its cycle window into a VCD file.
 pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
     renderer: &FixedRenderer,
     camera: &Camera,
@@ -110,6 +112,7 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
     memory: &mut M,
     config: &HardwareConfig,
     skip_dead_cycles: bool,
+    mut waveform: Option<&mut Waveform>,
 ) -> Result<CycleResult> {
     let (w, h) = (camera.width, camera.height);
     let ray_count = (w * h) as usize;
@@ -156,8 +159,11 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
         }
     };
 
+    let mut probe = Probe::default();
     while retired < ray_count {
         let mut moved = false;
+        let retired_before = retired;
+        let mut ert_event = false;
 
         // Compositing stages: the sample due now is composited, or discarded after ERT.
         while let Some(s) = stages.front().copied() {
@@ -177,6 +183,7 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
                     // As in the functional model: early if positions remained after this one.
                     records[s.ray_id].terminated_early = s.k + 1 < p.positions as u64;
                     feedback.push_back((now + feedback_latency, s.ray_id));
+                    ert_event = true;
                 }
             }
             p.done += 1;
@@ -246,7 +253,7 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
         }
 
         // Issue: one step of one ready ray.
-        let stall = issue(
+        let issued = issue(
             renderer,
             &mut queue,
             &mut skip,
@@ -257,7 +264,8 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
             &mut stats,
             now,
         );
-        moved |= stall.is_none();
+        moved |= issued.is_ok();
+        let stall = issued.err();
 
         // Ray setup: fill free slots; rays that miss the volume write the background at once.
         for _ in 0..config.ray_queue.setups_per_cycle {
@@ -304,7 +312,24 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
             );
         }
 
-        // Account this cycle, then jump over cycles in which nothing can happen.
+        if let Some(w) = waveform.as_deref_mut().filter(|w| w.wants(now)) {
+            probe.ray_queue_occupancy = queue.occupancy() as u64;
+            probe.issue_valid = issued.is_ok();
+            if let Ok(step) = issued {
+                probe.issue_ray = step.ray_id as u64;
+                probe.leap = step.leap;
+                probe.occupied = !step.leap;
+            }
+            probe.compositing_buffer = buffer.len() as u64;
+            probe.ert_event = ert_event;
+            probe.retire_event = retired > retired_before;
+            memory.probe(&mut probe.modules);
+            w.sample(now, &probe)?;
+        }
+
+        // Account this cycle, then jump over cycles in which nothing can happen (not while a
+        // waveform records: every cycle of its window is written).
+        let recording = waveform.as_deref().is_some_and(|w| w.wants(now + 1));
         let mut span = 1u64;
         if moved {
             last_progress = now;
@@ -319,7 +344,7 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
             .flatten()
             .min();
             match next {
-                Some(t) if skip_dead_cycles && t > now + 1 => span = t - now,
+                Some(t) if skip_dead_cycles && !recording && t > now + 1 => span = t - now,
                 Some(_) => {}
                 None if retired < ray_count => {
                     return Err(deadlock(
@@ -384,7 +409,14 @@ enum Stall {
     BufferFull,
 }
 
-/// The issue stage: selects one ready ray and issues its step. Returns why nothing issued.
+/// What the issue stage did in a cycle.
+#[derive(Clone, Copy, Debug)]
+struct Issued {
+    ray_id: usize,
+    leap: bool,
+}
+
+/// The issue stage: selects one ready ray and issues its step, or says why nothing issued.
 #[allow(clippy::too_many_arguments)]
 fn issue<S: SpaceSkipper, M: VoxelMemory>(
     renderer: &FixedRenderer,
@@ -396,19 +428,21 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
     records: &mut [RayRecord],
     stats: &mut CycleStats,
     now: u64,
-) -> Option<Stall> {
+) -> std::result::Result<Issued, Stall> {
     if queue.occupancy() == 0 {
-        return Some(Stall::RayQueueEmpty);
+        return Err(Stall::RayQueueEmpty);
     }
     let Some(index) = queue.select(|_| true) else {
-        return Some(Stall::SkipBusy);
+        return Err(Stall::SkipBusy);
     };
     let slot = queue.slot_mut(index).expect("selected slot");
     let remaining = slot.ray.samples as u64 - slot.k;
-    let (new_k, new_pos) = match skipper.decide(slot.pos, &slot.ray) {
+    let ray_id = slot.ray_id;
+    let action = skipper.decide(slot.pos, &slot.ray);
+    let (new_k, new_pos) = match action {
         Action::Sample => {
             if buffer.is_full() {
-                return Some(Stall::BufferFull);
+                return Err(Stall::BufferFull);
             }
             // The tag is filled in once the buffer entry exists; the check needs only the
             // addresses.
@@ -417,7 +451,7 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
                 base: renderer.base_voxel(slot.pos),
             };
             if !memory.can_accept(&request) {
-                return Some(Stall::Memory);
+                return Err(Stall::Memory);
             }
             let id = buffer
                 .reserve(slot.ray_id, slot.k, slot.pos)
@@ -448,7 +482,10 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
         now,
     );
     queue.issued_from(index);
-    None
+    Ok(Issued {
+        ray_id,
+        leap: matches!(action, Action::Leap(_)),
+    })
 }
 
 #[inline]

@@ -190,9 +190,13 @@ impl SdramDevice {
             ],
             rules: {
                 let table = timing_rules(timing);
-                [CommandKind::Act, CommandKind::Read, CommandKind::Pre, CommandKind::Ref].map(|k| {
-                    table.iter().copied().filter(|r| r.preceding == k).collect()
-                })
+                [
+                    CommandKind::Act,
+                    CommandKind::Read,
+                    CommandKind::Pre,
+                    CommandKind::Ref,
+                ]
+                .map(|k| table.iter().copied().filter(|r| r.preceding == k).collect())
             },
             bus_free: 0,
         }

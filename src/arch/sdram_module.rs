@@ -17,6 +17,7 @@ use std::collections::VecDeque;
 use super::address_map::{AddressMap, MemoryConfig, RowPolicy, WordAddress};
 use super::overtaking_fifo::{OvertakingFifo, PendingWord};
 use super::sdram::{Command, SdramDevice, SdramTiming};
+use super::trace::ModuleProbe;
 use super::voxel_memory::{SampleRequest, VoxelMemory};
 
 /// What one module counted. Cycles are clock cycles.
@@ -57,6 +58,9 @@ pub struct SdramModule {
     refresh_interval: Option<u64>,
     next_refresh: u64,
     refresh_pending: bool,
+    /// For waveforms: the cycle and kind of the last command, the row of the last ACT.
+    last_command: (u64, u64),
+    last_act_row: u32,
     pub stats: ModuleStats,
 }
 
@@ -79,6 +83,8 @@ impl SdramModule {
             refresh_interval,
             next_refresh: refresh_interval.unwrap_or(u64::MAX),
             refresh_pending: false,
+            last_command: (u64::MAX, 0),
+            last_act_row: 0,
             stats: ModuleStats::default(),
         }
     }
@@ -101,12 +107,26 @@ impl SdramModule {
     fn try_issue(&mut self, cmd: Command, now: u64) -> bool {
         if self.device.is_legal(cmd, now) {
             self.device.issue(cmd, now);
-            match cmd {
-                Command::Act { .. } => self.stats.activates += 1,
-                Command::Pre { .. } => self.stats.precharges += 1,
-                Command::Ref => self.stats.refreshes += 1,
-                Command::Read { .. } => self.stats.reads += 1,
-            }
+            let code = match cmd {
+                Command::Act { row, .. } => {
+                    self.stats.activates += 1;
+                    self.last_act_row = row;
+                    1
+                }
+                Command::Read { .. } => {
+                    self.stats.reads += 1;
+                    2
+                }
+                Command::Pre { .. } => {
+                    self.stats.precharges += 1;
+                    3
+                }
+                Command::Ref => {
+                    self.stats.refreshes += 1;
+                    4
+                }
+            };
+            self.last_command = (now, code);
             true
         } else {
             false
@@ -234,6 +254,20 @@ impl SdramModule {
         self.fifo.is_empty() && self.voxel_fifo.is_empty()
     }
 
+    /// Waveform signals at cycle `now`.
+    pub fn probe(&self, now: u64) -> ModuleProbe {
+        ModuleProbe {
+            command: if self.last_command.0 == now {
+                self.last_command.1
+            } else {
+                0
+            },
+            open_row: self.last_act_row as u64,
+            address_fifo: self.fifo.len() as u64,
+            voxel_fifo: self.voxel_fifo.len() as u64,
+        }
+    }
+
     /// Final statistics (folds in the FIFO's counters).
     pub fn final_stats(&self) -> ModuleStats {
         let mut s = self.stats.clone();
@@ -244,11 +278,16 @@ impl SdramModule {
     }
 }
 
+/// A sample's words and how many of them are used.
+type SampleWords = ([WordAddress; 8], usize);
+
 /// The interleaved SDRAM modules as the pipeline's voxel memory.
 pub struct SdramMemory {
     map: AddressMap,
+    /// The cycle of the last `step`, for waveform probes.
+    now: u64,
     /// The last sample's words: a stalled sample is asked about every cycle.
-    last_words: std::cell::Cell<Option<([usize; 3], [WordAddress; 8], usize)>>,
+    last_words: std::cell::Cell<Option<([usize; 3], SampleWords)>>,
     modules: Vec<SdramModule>,
     /// Words still missing per tag (tags are compositing-buffer entry ids).
     missing: Vec<u8>,
@@ -264,6 +303,7 @@ impl SdramMemory {
     ) -> Self {
         SdramMemory {
             map: AddressMap::new(config, dims),
+            now: 0,
             last_words: std::cell::Cell::new(None),
             modules: (0..config.modules())
                 .map(|_| SdramModule::new(config, timing))
@@ -273,13 +313,13 @@ impl SdramMemory {
         }
     }
 
-    fn words(&self, base: [usize; 3]) -> ([WordAddress; 8], usize) {
+    fn words(&self, base: [usize; 3]) -> SampleWords {
         match self.last_words.get() {
-            Some((b, words, n)) if b == base => (words, n),
+            Some((b, words)) if b == base => words,
             _ => {
-                let (words, n) = self.map.sample_words(base);
-                self.last_words.set(Some((base, words, n)));
-                (words, n)
+                let words = self.map.sample_words(base);
+                self.last_words.set(Some((base, words)));
+                words
             }
         }
     }
@@ -310,6 +350,7 @@ impl VoxelMemory for SdramMemory {
     }
 
     fn step(&mut self, now: u64, completed: &mut Vec<u64>) {
+        self.now = now;
         for module in &mut self.modules {
             module.step(now);
             if let Some(tag) = module.pop_word(now) {
@@ -328,6 +369,11 @@ impl VoxelMemory for SdramMemory {
 
     fn next_event(&self, now: u64) -> Option<u64> {
         self.modules.iter().filter_map(|m| m.next_event(now)).min()
+    }
+
+    fn probe(&self, modules: &mut Vec<ModuleProbe>) {
+        modules.clear();
+        modules.extend(self.modules.iter().map(|m| m.probe(self.now)));
     }
 
     fn stats_json(&self) -> serde_json::Value {

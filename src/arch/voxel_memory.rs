@@ -3,6 +3,8 @@
 //! overtaking) is one implementation; `IdealMemory` (a fixed latency, unlimited bandwidth) is
 //! the other, used for closed-form checks and as the "memory is free" bound.
 
+use super::trace::ModuleProbe;
+
 /// A sample's memory request: its tag and the lower corner of its 2×2×2 neighbourhood.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SampleRequest {
@@ -24,6 +26,10 @@ pub trait VoxelMemory {
     fn next_event(&self, now: u64) -> Option<u64>;
     /// Statistics as JSON (model-specific fields, documented by each model).
     fn stats_json(&self) -> serde_json::Value;
+    /// Per-module waveform signals of the current cycle (none for models without modules).
+    fn probe(&self, modules: &mut Vec<ModuleProbe>) {
+        modules.clear();
+    }
 }
 
 /// Every request completes exactly `latency` cycles after it entered.
@@ -94,5 +100,8 @@ impl<M: VoxelMemory + ?Sized> VoxelMemory for Box<M> {
     }
     fn stats_json(&self) -> serde_json::Value {
         (**self).stats_json()
+    }
+    fn probe(&self, modules: &mut Vec<ModuleProbe>) {
+        (**self).probe(modules)
     }
 }
