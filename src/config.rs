@@ -209,6 +209,47 @@ impl HardwareConfig {
             0,
             r.position_frac_bits as u64,
         )?;
+        range("skip.latency", self.skip.latency as u64, 1, 64)?;
+        let q = &self.ray_queue;
+        range("ray_queue.rays", q.rays as u64, 1, 4096)?;
+        range("ray_queue.tile[0]", q.tile[0] as u64, 1, 256)?;
+        range("ray_queue.tile[1]", q.tile[1] as u64, 1, 256)?;
+        range(
+            "ray_queue.setups_per_cycle",
+            q.setups_per_cycle as u64,
+            1,
+            64,
+        )?;
+        let c = &self.compositing;
+        range(
+            "compositing.buffer_capacity",
+            c.buffer_capacity as u64,
+            1,
+            1 << 20,
+        )?;
+        range("compositing.stage_latency", c.stage_latency as u64, 1, 256)?;
+        range(
+            "compositing.ert_feedback_latency",
+            c.ert_feedback_latency as u64,
+            1,
+            256,
+        )?;
+        range(
+            "compositing.watchdog_cycles",
+            c.watchdog_cycles,
+            100,
+            1 << 40,
+        )?;
+        let f = self.clock.frequency_mhz;
+        if !(f.is_finite() && f > 0.0 && f <= 1e5) {
+            return Err(Error::config(
+                source,
+                "clock.frequency_mhz",
+                format!("{f} is out of range; allowed (0, 100000] MHz"),
+            ));
+        }
+        self.memory.validate(source)?;
+        self.sdram.validate(source)?;
         let o = &self.occupancy;
         if o.subcube != 0 && !SUBCUBE_SIZES.contains(&o.subcube) {
             return Err(Error::config(

@@ -322,3 +322,95 @@ fn occupancy_reports_the_published_storage_and_sram_fit() {
     assert_eq!(report["sizes"][0]["fits_sram"], false);
     assert_eq!(report["sizes"][2]["fits_sram"], true);
 }
+
+#[test]
+fn sim_writes_the_statistics_architects_need() {
+    let dir = scratch("sim");
+    let json = dir.join("sim.json");
+    let png = dir.join("sim.png");
+    let out = vizsim(&[
+        "sim",
+        "--dataset",
+        "phantom:metaballs:32",
+        "--size",
+        "24x24",
+        "--subcube",
+        "4",
+        "--hierarchy",
+        "-o",
+        png.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let cycles = s["cycles"].as_u64().unwrap();
+    assert!(cycles >= s["steps"].as_u64().unwrap());
+    assert_eq!(
+        s["steps"],
+        s["samples"].as_u64().unwrap() + s["leaps"].as_u64().unwrap()
+    );
+    assert!((s["fps"].as_f64().unwrap() - 100e6 / cycles as f64).abs() < 1e-6);
+    for field in [
+        "discarded_after_ert",
+        "sim_cycles_per_second",
+        "frame_time_ns",
+    ] {
+        assert!(s[field].is_number(), "{field}");
+    }
+    let modules = s["memory_stats"]["modules"].as_array().unwrap();
+    assert_eq!(modules.len(), 4);
+    for m in modules {
+        for field in ["row_hits", "row_misses", "refreshes", "reads"] {
+            assert!(m[field].is_u64(), "{field}");
+        }
+    }
+    assert!(
+        s["memory_stats"]["avg_ns_per_voxel_access"]
+            .as_f64()
+            .unwrap()
+            >= 10.0
+    );
+    for cause in [
+        "ray_queue_empty",
+        "skip_unit_busy",
+        "memory",
+        "compositing_buffer_full",
+    ] {
+        assert!(s["pipeline"]["stall_cycles"][cause].is_u64(), "{cause}");
+    }
+    assert_eq!(s["hardware"]["skip"]["latency"], 8);
+    assert!(png.is_file());
+}
+
+#[test]
+fn sim_rejects_impossible_hardware_before_running() {
+    let dir = scratch("sim-bad");
+    let json = dir.join("sim.json");
+    for (set, field) in [
+        ("memory.voxel_fifo_depth=0", "memory.voxel_fifo_depth"),
+        ("ray_queue.rays=0", "ray_queue.rays"),
+        ("skip.latency=0", "skip.latency"),
+        ("memory.banks=3", "memory.banks"),
+        ("memory.rows=8", "memory.rows"),
+    ] {
+        assert_fails(
+            &[
+                "sim",
+                "--dataset",
+                "phantom:sphere:64",
+                "--set",
+                set,
+                "--json",
+                json.to_str().unwrap(),
+            ],
+            &[field],
+            &json,
+        );
+    }
+}

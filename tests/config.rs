@@ -97,3 +97,31 @@ fn malformed_toml_names_the_file() {
         .to_string();
     assert!(err.contains("test.toml"), "{err}");
 }
+
+#[test]
+fn pipeline_and_memory_fields_are_validated() {
+    for (set, field) in [
+        ("ray_queue.rays=0", "ray_queue.rays"),
+        ("skip.latency=0", "skip.latency"),
+        (
+            "compositing.buffer_capacity=0",
+            "compositing.buffer_capacity",
+        ),
+        ("compositing.stage_latency=0", "compositing.stage_latency"),
+        (
+            "compositing.ert_feedback_latency=0",
+            "compositing.ert_feedback_latency",
+        ),
+        ("clock.frequency_mhz=0.0", "clock.frequency_mhz"),
+        ("memory.voxel_fifo_depth=0", "memory.voxel_fifo_depth"),
+        ("memory.address_fifo_depth=0", "memory.address_fifo_depth"),
+        ("memory.banks=3", "memory.banks"),
+        ("sdram.t_rcd=0", "sdram.t_rcd"),
+        ("sdram.refresh_interval=5", "sdram.refresh_interval"),
+    ] {
+        let err = load(vizsim::config::DEFAULT_TOML, &[set])
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(field), "{set}: {err}");
+    }
+}
