@@ -101,3 +101,51 @@ fn fixed_256(bencher: divan::Bencher, subcube: usize) {
         .counter(ItemsCount::new(steps))
         .bench(|| pool.install(|| renderer.render(&camera)));
 }
+
+/// The cycle-accurate pipeline with the SDRAM model (default configuration), one 256³ frame at
+/// 128×128 (a 256×256 frame takes four times as long); divan's items are simulated cycles.
+#[divan::bench(sample_count = 2)]
+fn cycle_256(bencher: divan::Bencher) {
+    use vizsim::arch::pipeline::simulate;
+    use vizsim::arch::sdram_module::SdramMemory;
+    use vizsim::config::HardwareConfig;
+    use vizsim::functional::renderer::{FixedRenderer, Leaping};
+    let volume = volume_256();
+    let tf = transfer::resolve("class", &volume.name).unwrap();
+    let config = HardwareConfig::default_config();
+    let renderer = FixedRenderer::new(
+        volume,
+        &tf,
+        &RenderSettings::default(),
+        &config,
+        Leaping::None,
+    )
+    .unwrap();
+    let camera = Camera::for_volume(
+        glam::Vec3::from(volume.extent()),
+        View::Orbit { k: 5, n: 72 },
+        Projection::Ortho,
+        128,
+        128,
+    )
+    .unwrap();
+    let run = || {
+        let mut memory = SdramMemory::new(&config.memory, &config.sdram, volume.dims, 100.0);
+        simulate(
+            &renderer,
+            &camera,
+            &renderer.skipper(),
+            &mut memory,
+            &config,
+            true,
+            None,
+        )
+        .unwrap()
+    };
+    let cycles = run().stats.cycles;
+    println!(
+        "cycle_256: {} at 128x128, {cycles} cycles per frame",
+        volume.name
+    );
+    bencher.counter(ItemsCount::new(cycles)).bench(run);
+}
