@@ -91,3 +91,96 @@ fn fixed_point_stays_close_to_float_on_real_data() {
         assert!(cmp.psnr_db > 35.0, "{}: {cmp:?}", volume.name);
     }
 }
+
+/// The cycle model (SDRAM) against the functional model on real data: fuel and neghip over
+/// sub-cube sizes, hierarchy, ERT and projections; one 256³ view.
+#[test]
+fn cycle_model_equals_functional_on_real_data() {
+    use vizsim::arch::pipeline::simulate;
+    use vizsim::arch::sdram_module::SdramMemory;
+    use vizsim::config::HardwareConfig;
+    use vizsim::functional::renderer::FixedRenderer;
+    let mut config = HardwareConfig::default_config();
+    config.occupancy.sram_bits = 1 << 24;
+    let cases = [
+        (
+            "fuel",
+            View::Orbit { k: 7, n: 72 },
+            Projection::Ortho,
+            Some(0.95),
+            Leaping::None,
+        ),
+        (
+            "fuel",
+            View::Orbit { k: 50, n: 72 },
+            Projection::Persp,
+            None,
+            Leaping::Occupancy {
+                subcube: 2,
+                hierarchy: true,
+                kind: OccupancyKind::Class,
+            },
+        ),
+        (
+            "neghip",
+            View::Front,
+            Projection::Ortho,
+            Some(0.95),
+            Leaping::Occupancy {
+                subcube: 8,
+                hierarchy: false,
+                kind: OccupancyKind::Zero,
+            },
+        ),
+        (
+            "neghip",
+            View::Orbit { k: 20, n: 72 },
+            Projection::Persp,
+            Some(0.95),
+            Leaping::Occupancy {
+                subcube: 32,
+                hierarchy: true,
+                kind: OccupancyKind::Class,
+            },
+        ),
+        (
+            "aneurism",
+            View::Orbit { k: 13, n: 72 },
+            Projection::Ortho,
+            Some(0.95),
+            Leaping::Occupancy {
+                subcube: 16,
+                hierarchy: true,
+                kind: OccupancyKind::Class,
+            },
+        ),
+    ];
+    for (name, view, projection, ert, leaping) in cases {
+        let Some(volume) = load(name) else { return };
+        let tf = transfer::resolve("class", name).unwrap();
+        let cam = camera(&volume, view, projection, 32);
+        let settings = RenderSettings {
+            ert_threshold: ert,
+            ..Default::default()
+        };
+        let renderer = FixedRenderer::new(&volume, &tf, &settings, &config, leaping).unwrap();
+        let mut memory = SdramMemory::new(&config.memory, &config.sdram, volume.dims, 100.0);
+        let cycle = simulate(
+            &renderer,
+            &cam,
+            &renderer.skipper(),
+            &mut memory,
+            &config,
+            true,
+            None,
+        )
+        .unwrap();
+        let functional = renderer.render(&cam);
+        assert!(
+            cycle.frame.pixels == functional.pixels,
+            "{name} {view:?} {leaping:?}"
+        );
+        assert_eq!(cycle.stats.composited, functional.stats().samples, "{name}");
+        assert!(cycle.stats.cycles >= cycle.stats.steps);
+    }
+}

@@ -87,11 +87,16 @@ impl OvertakingFifo {
         if !self.enabled {
             return Some(0);
         }
-        let window = self.queue.iter().take(self.window);
-        if let Some(i) = window.clone().position(|w| w.bypassed >= self.max_bypass) {
-            return Some(i);
+        let mut first_hit = None;
+        for (i, w) in self.queue.iter().take(self.window).enumerate() {
+            if w.bypassed >= self.max_bypass {
+                return Some(i);
+            }
+            if first_hit.is_none() && is_open(&w.addr) {
+                first_hit = Some(i);
+            }
         }
-        Some(window.clone().position(|w| is_open(&w.addr)).unwrap_or(0))
+        Some(first_hit.unwrap_or(0))
     }
 
     /// Removes the request at `index` to be served; every older request was overtaken.
