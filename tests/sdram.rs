@@ -305,7 +305,7 @@ fn mappings_touch_one_word_per_module_and_check_capacity() {
         let map = AddressMap::new(&config, [64, 64, 64]);
         let (w, n) = map.sample_words([11, 20, 33]);
         assert_eq!(n, words, "{mapping:?}");
-        let mut modules: Vec<usize> = w[..n].iter().map(|a| a.module).collect();
+        let mut modules: Vec<u32> = w[..n].iter().map(|a| a.module).collect();
         modules.sort();
         modules.dedup();
         assert_eq!(modules.len(), words, "{mapping:?}: distinct modules");
@@ -392,20 +392,38 @@ fn cycle_model_with_sdram_equals_the_functional_image() {
         let cam = common::camera(&volume, view, projection, 32);
         let renderer =
             FixedRenderer::new(&volume, &tf, &RenderSettings::default(), &config, leaping).unwrap();
-        let run = |skip_dead| {
-            let mut memory = SdramMemory::new(&config.memory, &config.sdram, volume.dims, 100.0);
-            simulate(
+        // Fast: the clock jumps over dead cycles and idle controllers sleep. Reference: every
+        // unit steps every cycle.
+        let run = |fast: bool| {
+            let memory = SdramMemory::new(&config.memory, &config.sdram, volume.dims, 100.0);
+            let mut memory = if fast {
+                memory
+            } else {
+                memory.without_sleeping()
+            };
+            let result = simulate(
                 &renderer,
                 &cam,
                 &renderer.skipper(),
                 &mut memory,
                 &config,
-                skip_dead,
+                fast,
                 None,
             )
-            .unwrap()
+            .unwrap();
+            (result, memory.module_stats())
         };
-        let (jumped, ticked) = (run(true), run(false));
+        let ((jumped, fast_modules), (ticked, ticked_modules)) = (run(true), run(false));
+        assert_eq!(
+            fast_modules, ticked_modules,
+            "sleeping controllers equal ticking"
+        );
+        for m in &fast_modules {
+            let total = |h: &[u64]| h.iter().sum::<u64>();
+            assert_eq!(total(&m.address_fifo_occupancy), jumped.stats.cycles);
+            assert_eq!(total(&m.voxel_fifo_occupancy), jumped.stats.cycles);
+            assert!(m.busy_cycles > 0 && m.busy_cycles < jumped.stats.cycles);
+        }
         assert!(
             jumped.frame.pixels == renderer.render(&cam).pixels,
             "{view:?} {policy:?}"

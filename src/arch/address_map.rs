@@ -187,7 +187,7 @@ impl MemoryConfig {
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub struct WordAddress {
-    pub module: usize,
+    pub module: u32,
     pub bank: u32,
     pub row: u32,
     pub column: u32,
@@ -203,6 +203,17 @@ pub struct AddressMap {
     /// Low block-coordinate bits per axis that form the bank, and the rest's grid for rows.
     bank_shifts: [u32; 3],
     row_grid: [usize; 3],
+    /// Block layouts: bank, row and column are sums of independent per-axis parts (bank bits
+    /// are disjoint, row and column are linear in the block coordinates), tabulated per local
+    /// coordinate so a word costs three lookups. Empty for the linear layout.
+    parts: [Vec<AxisPart>; 3],
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct AxisPart {
+    bank: u32,
+    row: u32,
+    column: u32,
 }
 
 impl AddressMap {
@@ -210,13 +221,32 @@ impl AddressMap {
         let local = config.local_dims(dims);
         let blocks = [0, 1, 2].map(|a| local[a].div_ceil(config.block[a] as usize));
         let (bank_shifts, row_grid) = bank_split(blocks, config.banks);
-        AddressMap {
+        let mut map = AddressMap {
             config: config.clone(),
             local,
             block_log2: config.block.map(|b| b.trailing_zeros()),
             bank_shifts,
             row_grid,
+            parts: Default::default(),
+        };
+        if config.mapping != Mapping::Linear4 {
+            // One past the local extent: a neighbourhood's upper corner may lie there.
+            map.parts = [0, 1, 2].map(|axis| {
+                (0..=local[axis] + 1)
+                    .map(|l| {
+                        let mut coords = [0; 3];
+                        coords[axis] = l;
+                        let w = map.block_word(0, coords);
+                        AxisPart {
+                            bank: w.bank,
+                            row: w.row,
+                            column: w.column,
+                        }
+                    })
+                    .collect()
+            });
         }
+        map
     }
 
     /// The words a sample with lower corner `base` reads, one per module it touches: the first
@@ -240,7 +270,7 @@ impl AddressMap {
                     let module = match self.config.mapping {
                         Mapping::Interleaved8 => (x & 1) + 2 * (y & 1) + 4 * (z & 1),
                         _ => (x & 1) + 2 * (y & 1),
-                    };
+                    } as u32;
                     let local = match self.config.mapping {
                         Mapping::Interleaved8 => [x >> 1, y >> 1, z >> 1],
                         _ => [x >> 1, y >> 1, z],
@@ -253,20 +283,29 @@ impl AddressMap {
         (out, n)
     }
 
-    fn word(&self, module: usize, l: [usize; 3]) -> WordAddress {
+    #[inline]
+    fn word(&self, module: u32, l: [usize; 3]) -> WordAddress {
+        if self.config.mapping == Mapping::Linear4 {
+            return self.linear_word(module, l);
+        }
+        let (x, y, z) = (
+            self.parts[0][l[0]],
+            self.parts[1][l[1]],
+            self.parts[2][l[2]],
+        );
+        WordAddress {
+            module,
+            bank: x.bank | y.bank | z.bank,
+            row: x.row + y.row + z.row,
+            column: x.column + y.column + z.column,
+        }
+    }
+
+    /// The word by the layout's definition (the per-axis tables are built from it).
+    fn block_word(&self, module: u32, l: [usize; 3]) -> WordAddress {
         let c = &self.config;
         match c.mapping {
-            Mapping::Linear4 => {
-                let a = l[0] + self.local[0] * (l[1] + self.local[1] * l[2]);
-                let global_row = a / c.columns as usize;
-                let banks = c.banks as usize;
-                WordAddress {
-                    module,
-                    bank: (global_row % banks) as u32,
-                    row: (global_row / banks) as u32,
-                    column: (a % c.columns as usize) as u32,
-                }
-            }
+            Mapping::Linear4 => self.linear_word(module, l),
             _ => {
                 let lg = self.block_log2;
                 let block = [l[0] >> lg[0], l[1] >> lg[1], l[2] >> lg[2]];
@@ -291,6 +330,21 @@ impl AddressMap {
     }
 }
 
+impl AddressMap {
+    fn linear_word(&self, module: u32, l: [usize; 3]) -> WordAddress {
+        let c = &self.config;
+        let a = l[0] + self.local[0] * (l[1] + self.local[1] * l[2]);
+        let global_row = a / c.columns as usize;
+        let banks = c.banks as usize;
+        WordAddress {
+            module,
+            bank: (global_row % banks) as u32,
+            row: (global_row / banks) as u32,
+            column: (a % c.columns as usize) as u32,
+        }
+    }
+}
+
 /// How the bank bits split a block grid: per axis, how many low coordinate bits go to the bank
 /// (interleaved x, y, z), and the block grid that remains for rows.
 fn bank_split(blocks: [usize; 3], banks: u32) -> ([u32; 3], [usize; 3]) {
@@ -300,4 +354,45 @@ fn bank_split(blocks: [usize; 3], banks: u32) -> ([u32; 3], [usize; 3]) {
     }
     let rest = [0, 1, 2].map(|a| blocks[a].div_ceil(1 << shifts[a]));
     (shifts, rest)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The per-axis tables give the layout's definition at every coordinate.
+    #[test]
+    fn tabulated_words_equal_the_definition() {
+        let base = crate::config::HardwareConfig::default_config().memory;
+        for (mapping, block, banks, dims) in [
+            (Mapping::Replicated4, [8, 8, 8], 4, [64, 64, 64]),
+            (Mapping::Replicated4, [16, 16, 2], 8, [256, 256, 178]),
+            (Mapping::Replicated4, [4, 8, 16], 16, [103, 94, 161]),
+            (Mapping::Interleaved8, [8, 8, 8], 4, [140, 120, 161]),
+            (Mapping::Interleaved8, [2, 4, 8], 2, [64, 64, 64]),
+        ] {
+            let config = MemoryConfig {
+                mapping,
+                block,
+                banks,
+                ..base.clone()
+            };
+            let map = AddressMap::new(&config, dims);
+            let local = config.local_dims(dims);
+            let mut checked = 0;
+            for z in 0..=local[2] {
+                for y in 0..=local[1] {
+                    for x in 0..=local[0] {
+                        assert_eq!(
+                            map.word(3, [x, y, z]),
+                            map.block_word(3, [x, y, z]),
+                            "{mapping:?} {block:?} {banks} banks at {x},{y},{z}"
+                        );
+                        checked += 1;
+                    }
+                }
+            }
+            assert!(checked > 1000);
+        }
+    }
 }

@@ -53,6 +53,11 @@ impl CompositingBuffer {
 
     /// Reserves an entry for a sample just issued; returns its id (the memory tag), or None
     /// when the buffer is full.
+    /// The entry id the next `reserve` will return.
+    pub fn next_free(&self) -> Option<u32> {
+        self.free.last().copied()
+    }
+
     pub fn reserve(&mut self, ray_id: usize, k: u64, pos: [i64; 3]) -> Option<u32> {
         let id = self.free.pop()?;
         self.entries[id as usize] = BufferedSample {

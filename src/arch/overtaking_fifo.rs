@@ -87,16 +87,29 @@ impl OvertakingFifo {
         if !self.enabled {
             return Some(0);
         }
-        let mut first_hit = None;
-        for (i, w) in self.queue.iter().take(self.window).enumerate() {
-            if w.bypassed >= self.max_bypass {
-                return Some(i);
-            }
-            if first_hit.is_none() && is_open(&w.addr) {
-                first_hit = Some(i);
-            }
+        // Every take bypasses all requests older than the one taken, so bypass counts never
+        // rise along the queue: if any request in the window reached the bound, the oldest did.
+        debug_assert!(self
+            .queue
+            .iter()
+            .zip(self.queue.iter().skip(1))
+            .all(|(older, younger)| older.bypassed >= younger.bypassed));
+        if self.queue[0].bypassed >= self.max_bypass {
+            return Some(0);
         }
-        Some(first_hit.unwrap_or(0))
+        let (front, back) = self.queue.as_slices();
+        let window = self.window.min(self.queue.len());
+        let (front, back) = if window <= front.len() {
+            (&front[..window], &back[..0])
+        } else {
+            (front, &back[..window - front.len()])
+        };
+        let hit = front
+            .iter()
+            .chain(back)
+            .position(|w| is_open(&w.addr))
+            .unwrap_or(0);
+        Some(hit)
     }
 
     /// Removes the request at `index` to be served; every older request was overtaken.
@@ -108,6 +121,9 @@ impl OvertakingFifo {
             }
         } else if self.queue[0].bypassed >= self.max_bypass && self.enabled {
             self.forced += 1;
+        }
+        if index == 0 {
+            return self.queue.pop_front().expect("queue not empty");
         }
         self.queue.remove(index).expect("index within the queue")
     }

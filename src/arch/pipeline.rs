@@ -128,6 +128,7 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
     let mut stages: VecDeque<StagedSample> = VecDeque::new();
     let mut feedback: VecDeque<(u64, usize)> = VecDeque::new();
     let mut completed_tags = Vec::new();
+    let mut leaving_candidates: Vec<usize> = Vec::new();
     let mut next_setup = 0usize;
     let mut retired = 0usize;
 
@@ -221,7 +222,7 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
                 break;
             }
             feedback.pop_front();
-            queue.terminate(ray_id);
+            leaving_candidates.extend(queue.terminate(ray_id));
             moved = true;
         }
 
@@ -231,11 +232,13 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
                 slot.pos = update.pos;
                 slot.k = update.k;
                 slot.busy = false;
+                leaving_candidates.push(update.slot);
             }
             moved = true;
         }
-        // Rays that have issued their last position (or learnt of ERT) leave the queue.
-        for i in 0..queue.capacity() {
+        // Rays that have issued their last position (or learnt of ERT) leave the queue. Only a
+        // slot whose update came back or whose ray was terminated can have become finished.
+        for i in leaving_candidates.drain(..) {
             let leaving = queue.slot(i).is_some_and(|s| !s.busy && s.finished());
             if leaving {
                 let slot = queue.remove(i).expect("slot present");
@@ -372,6 +375,7 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
         }
         stats.ray_queue_occupancy[queue.occupancy()] += span;
         stats.compositing_buffer_occupancy[buffer.len()] += span;
+        memory.account_cycles(span);
         stats.skipped_cycles += span - 1;
         now += span;
     }
@@ -444,20 +448,17 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
             if buffer.is_full() {
                 return Err(Stall::BufferFull);
             }
-            // The tag is filled in once the buffer entry exists; the check needs only the
-            // addresses.
-            let mut request = SampleRequest {
-                tag: 0,
+            // The tag is the compositing-buffer entry the sample will occupy.
+            let tag = buffer.next_free().expect("buffer has room: checked above");
+            let request = SampleRequest {
+                tag: tag as u64,
                 base: renderer.base_voxel(slot.pos),
             };
-            if !memory.can_accept(&request) {
+            if !memory.try_push(request, now) {
                 return Err(Stall::Memory);
             }
-            let id = buffer
-                .reserve(slot.ray_id, slot.k, slot.pos)
-                .expect("buffer has room: checked above");
-            request.tag = id as u64;
-            memory.push(request, now);
+            let id = buffer.reserve(slot.ray_id, slot.k, slot.pos);
+            debug_assert_eq!(id, Some(tag));
             slot.samples_issued += 1;
             records[slot.ray_id].samples += 1;
             stats.samples += 1;

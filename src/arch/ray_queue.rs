@@ -46,6 +46,9 @@ impl RayQueue {
     }
 
     pub fn free_slot(&self) -> Option<usize> {
+        if self.occupied == self.slots.len() {
+            return None;
+        }
         self.slots.iter().position(Option::is_none)
     }
 
@@ -108,11 +111,15 @@ impl RayQueue {
 
     /// Marks the ray terminated if it still holds a slot (the feedback may arrive after the
     /// ray has already issued its last position and left).
-    pub fn terminate(&mut self, ray_id: usize) {
-        for s in self.slots.iter_mut().flatten() {
-            if s.ray_id == ray_id {
-                s.terminated = true;
-            }
+    /// Marks the ray terminated; returns its slot if it is still in the queue.
+    pub fn terminate(&mut self, ray_id: usize) -> Option<usize> {
+        let index = self
+            .slots
+            .iter()
+            .position(|s| s.as_ref().is_some_and(|s| s.ray_id == ray_id))?;
+        if let Some(s) = self.slots[index].as_mut() {
+            s.terminated = true;
         }
+        Some(index)
     }
 }

@@ -164,22 +164,46 @@ pub fn timing_rules(t: &SdramTiming) -> Vec<TimingRule> {
 #[derive(Clone, Debug)]
 struct Bank {
     open_row: Option<u32>,
-    /// Earliest legal cycle of each command kind on this bank.
+    /// Earliest legal cycle of each command kind on this bank (same- and other-bank rules).
     earliest: [u64; KINDS],
+}
+
+/// The rule table resolved for `issue`, per preceding command kind: the largest latency it
+/// imposes on each following kind in its own bank, in the other banks, and in every bank
+/// (0 = no rule). Every-bank rules are kept once per module rather than per bank.
+#[derive(Clone, Copy, Debug, Default)]
+struct Effects {
+    same: [u32; KINDS],
+    other: [u32; KINDS],
+    all: [u32; KINDS],
 }
 
 /// The banks of one module with their timing state.
 #[derive(Clone, Debug)]
 pub struct SdramDevice {
     banks: Vec<Bank>,
-    /// The rules, grouped by preceding command kind (the table, indexed for `issue`).
-    rules: [Vec<TimingRule>; KINDS],
+    effects: [Effects; KINDS],
+    /// Earliest legal cycle of each command kind by the every-bank rules.
+    all_banks: [u64; KINDS],
     /// The command bus: one command per cycle.
     bus_free: u64,
 }
 
 impl SdramDevice {
     pub fn new(banks: usize, timing: &SdramTiming) -> SdramDevice {
+        let mut effects = [Effects::default(); KINDS];
+        for rule in timing_rules(timing) {
+            let e = &mut effects[rule.preceding.index()];
+            // REF has no bank: every rule it precedes holds in every bank.
+            let table = match rule.scope {
+                _ if rule.preceding == CommandKind::Ref => &mut e.all,
+                Scope::SameBank => &mut e.same,
+                Scope::OtherBanks => &mut e.other,
+                Scope::AllBanks => &mut e.all,
+            };
+            let slot = &mut table[rule.following.index()];
+            *slot = (*slot).max(rule.latency);
+        }
         SdramDevice {
             banks: vec![
                 Bank {
@@ -188,16 +212,8 @@ impl SdramDevice {
                 };
                 banks
             ],
-            rules: {
-                let table = timing_rules(timing);
-                [
-                    CommandKind::Act,
-                    CommandKind::Read,
-                    CommandKind::Pre,
-                    CommandKind::Ref,
-                ]
-                .map(|k| table.iter().copied().filter(|r| r.preceding == k).collect())
-            },
+            effects,
+            all_banks: [0; KINDS],
             bus_free: 0,
         }
     }
@@ -228,7 +244,7 @@ impl SdramDevice {
             Some(bank) => self.banks[bank].earliest[k],
             None => self.banks.iter().map(|b| b.earliest[k]).max().unwrap_or(0),
         };
-        timing.max(self.bus_free)
+        timing.max(self.all_banks[k]).max(self.bus_free)
     }
 
     pub fn is_legal(&self, cmd: Command, now: u64) -> bool {
@@ -238,18 +254,22 @@ impl SdramDevice {
     /// Issues a legal command at `now`: applies every rule it precedes and its state change.
     pub fn issue(&mut self, cmd: Command, now: u64) {
         debug_assert!(self.is_legal(cmd, now), "illegal {cmd:?} at {now}");
-        let kind = cmd.kind();
-        let own = cmd.bank();
-        for rule in &self.rules[kind.index()] {
-            for (b, bank) in self.banks.iter_mut().enumerate() {
-                let applies = match (rule.scope, own) {
-                    (Scope::AllBanks, _) | (_, None) => true,
-                    (Scope::SameBank, Some(o)) => b == o,
-                    (Scope::OtherBanks, Some(o)) => b != o,
-                };
-                if applies {
-                    let slot = &mut bank.earliest[rule.following.index()];
-                    *slot = (*slot).max(now + rule.latency as u64);
+        fn raise(earliest: &mut [u64; KINDS], latencies: &[u32; KINDS], now: u64) {
+            for (slot, &latency) in earliest.iter_mut().zip(latencies) {
+                if latency > 0 {
+                    *slot = (*slot).max(now + latency as u64);
+                }
+            }
+        }
+        let effects = self.effects[cmd.kind().index()];
+        raise(&mut self.all_banks, &effects.all, now);
+        if let Some(own) = cmd.bank() {
+            raise(&mut self.banks[own].earliest, &effects.same, now);
+            if effects.other.iter().any(|&l| l > 0) {
+                for (b, bank) in self.banks.iter_mut().enumerate() {
+                    if b != own {
+                        raise(&mut bank.earliest, &effects.other, now);
+                    }
                 }
             }
         }

@@ -42,6 +42,11 @@ pub struct ModuleStats {
     pub overtakes: u64,
     pub forced_by_bypass_bound: u64,
     pub address_fifo_peak: usize,
+    /// Cycles spent at each address-FIFO fill level 0..=depth (requests waiting).
+    pub address_fifo_occupancy: Vec<u64>,
+    /// Cycles spent at each voxel-FIFO fill level 0..=depth (places taken: words waiting for
+    /// the sample assembly, and words on their way from a READ).
+    pub voxel_fifo_occupancy: Vec<u64>,
 }
 
 pub struct SdramModule {
@@ -61,6 +66,14 @@ pub struct SdramModule {
     /// For waveforms: the cycle and kind of the last command, the row of the last ACT.
     last_command: (u64, u64),
     last_act_row: u32,
+    /// The controller sleeps until this cycle (0 after a push: run next cycle).
+    wake_at: u64,
+    /// The last cycle the controller ran, and whether it was busy (requests queued or a
+    /// refresh pending) when it went to sleep: the cycles slept through count as busy then.
+    last_step: u64,
+    busy_while_asleep: bool,
+    /// Sleeping enabled (off only to check that it changes nothing).
+    sleeps: bool,
     pub stats: ModuleStats,
 }
 
@@ -85,7 +98,15 @@ impl SdramModule {
             refresh_pending: false,
             last_command: (u64::MAX, 0),
             last_act_row: 0,
-            stats: ModuleStats::default(),
+            wake_at: 0,
+            last_step: 0,
+            busy_while_asleep: false,
+            sleeps: true,
+            stats: ModuleStats {
+                address_fifo_occupancy: vec![0; config.address_fifo_depth + 1],
+                voxel_fifo_occupancy: vec![0; config.voxel_fifo_depth + 1],
+                ..ModuleStats::default()
+            },
         }
     }
 
@@ -94,6 +115,7 @@ impl SdramModule {
     }
 
     pub fn push(&mut self, tag: u32, addr: WordAddress, now: u64) {
+        self.wake_at = 0;
         self.fifo.push(PendingWord {
             tag,
             addr,
@@ -133,8 +155,31 @@ impl SdramModule {
         }
     }
 
-    /// One controller cycle.
+    /// One controller cycle. A controller that can do nothing before a known cycle (its
+    /// command waits for a timing rule, or it is idle until the next refresh) sleeps until
+    /// then; a push wakes it. Sleeping is exact: the cycles slept through are counted as
+    /// ticking would count them (tests/sdram.rs compares both).
     pub fn step(&mut self, now: u64) {
+        if now < self.wake_at {
+            return;
+        }
+        if self.busy_while_asleep {
+            self.stats.busy_cycles += now - self.last_step - 1;
+        }
+        self.last_step = now;
+        let wake = if self.sleeps {
+            self.control(now)
+        } else {
+            self.control(now);
+            now + 1
+        };
+        self.wake_at = wake.min(self.next_refresh);
+        self.busy_while_asleep = !self.fifo.is_empty() || self.refresh_pending;
+    }
+
+    /// The controller's decision in cycle `now`; returns the next cycle it must run again
+    /// (absent pushes).
+    fn control(&mut self, now: u64) -> u64 {
         if now >= self.next_refresh {
             self.refresh_pending = true;
             self.next_refresh += self.refresh_interval.unwrap_or(u64::MAX);
@@ -144,17 +189,17 @@ impl SdramModule {
         }
         if self.refresh_pending {
             let open = (0..self.device.banks()).find(|&b| self.device.open_row(b).is_some());
-            match open {
-                Some(bank) => {
-                    self.try_issue(Command::Pre { bank }, now);
+            let command = match open {
+                Some(bank) => Command::Pre { bank },
+                None => Command::Ref,
+            };
+            if self.try_issue(command, now) {
+                if command == Command::Ref {
+                    self.refresh_pending = false;
                 }
-                None => {
-                    if self.try_issue(Command::Ref, now) {
-                        self.refresh_pending = false;
-                    }
-                }
+                return now + 1;
             }
-            return;
+            return self.device.earliest(command);
         }
         if self.policy == RowPolicy::Close {
             for bank in 0..self.to_close.len() {
@@ -165,63 +210,65 @@ impl SdramModule {
                     Some(row) if !self.fifo.window_hits(bank as u32, row) => {
                         if self.try_issue(Command::Pre { bank }, now) {
                             self.to_close[bank] = false;
-                            return;
+                            return now + 1;
                         }
                     }
                     _ => self.to_close[bank] = false,
                 }
             }
         }
+        let pending_close = self.to_close.iter().any(|&c| c);
         let device = &self.device;
         let Some(index) = self
             .fifo
             .select(|a| device.open_row(a.bank as usize) == Some(a.row))
         else {
-            return;
+            return if pending_close { now + 1 } else { u64::MAX };
         };
         let request = *self.fifo.get_mut(index);
         let bank = request.addr.bank as usize;
-        match self.device.open_row(bank) {
+        let command = match self.device.open_row(bank) {
             Some(row) if row == request.addr.row => {
                 if self.voxel_fifo.len() >= self.voxel_depth {
                     self.stats.voxel_fifo_full_cycles += 1;
-                    return;
+                    return now + 1;
                 }
-                let read = Command::Read {
+                Command::Read {
                     bank,
                     column: request.addr.column,
-                };
-                if self.try_issue(read, now) {
-                    let served = self.fifo.take(index);
-                    let ready = now + self.cl;
-                    self.voxel_fifo.push_back((ready, served.tag));
-                    self.stats.total_latency_cycles += ready - served.entered;
-                    if served.activated {
-                        self.stats.row_misses += 1;
-                        self.stats.row_conflicts += served.precharged as u64;
-                    } else {
-                        self.stats.row_hits += 1;
-                    }
-                    if self.policy == RowPolicy::Close {
-                        self.to_close[bank] = true;
-                    }
                 }
             }
-            Some(_) => {
-                if self.try_issue(Command::Pre { bank }, now) {
-                    self.fifo.get_mut(index).precharged = true;
-                }
-            }
-            None => {
-                let act = Command::Act {
-                    bank,
-                    row: request.addr.row,
-                };
-                if self.try_issue(act, now) {
-                    self.fifo.get_mut(index).activated = true;
-                }
-            }
+            Some(_) => Command::Pre { bank },
+            None => Command::Act {
+                bank,
+                row: request.addr.row,
+            },
+        };
+        if !self.try_issue(command, now) {
+            let ready = self.device.earliest(command);
+            return if pending_close { now + 1 } else { ready };
         }
+        match command {
+            Command::Read { .. } => {
+                let served = self.fifo.take(index);
+                let ready = now + self.cl;
+                self.voxel_fifo.push_back((ready, served.tag));
+                self.stats.total_latency_cycles += ready - served.entered;
+                if served.activated {
+                    self.stats.row_misses += 1;
+                    self.stats.row_conflicts += served.precharged as u64;
+                } else {
+                    self.stats.row_hits += 1;
+                }
+                if self.policy == RowPolicy::Close {
+                    self.to_close[bank] = true;
+                }
+            }
+            Command::Pre { .. } => self.fifo.get_mut(index).precharged = true,
+            Command::Act { .. } => self.fifo.get_mut(index).activated = true,
+            Command::Ref => unreachable!("requests never issue a refresh"),
+        }
+        now + 1
     }
 
     /// The oldest word whose data is in the voxel FIFO by `now`.
@@ -235,23 +282,25 @@ impl SdramModule {
         }
     }
 
-    /// The earliest cycle after `now` at which this module could change anything.
+    /// The earliest cycle after `now` at which this module could change anything: its
+    /// controller wakes, or a word's data reaches the voxel FIFO.
     pub fn next_event(&self, now: u64) -> Option<u64> {
-        if !self.fifo.is_empty() || self.refresh_pending || self.to_close.iter().any(|&c| c) {
-            return Some(now + 1);
-        }
         let data = self
             .voxel_fifo
             .front()
-            .map(|&(ready, _)| ready.max(now + 1));
-        let refresh = self
-            .refresh_interval
-            .map(|_| self.next_refresh.max(now + 1));
-        data.into_iter().chain(refresh).min()
+            .map_or(u64::MAX, |&(ready, _)| ready);
+        let next = self.wake_at.min(data);
+        (next != u64::MAX).then(|| next.max(now + 1))
     }
 
     pub fn is_idle(&self) -> bool {
         self.fifo.is_empty() && self.voxel_fifo.is_empty()
+    }
+
+    /// Adds `cycles` cycles at the current FIFO levels to the occupancy histograms.
+    pub fn account_cycles(&mut self, cycles: u64) {
+        self.stats.address_fifo_occupancy[self.fifo.len()] += cycles;
+        self.stats.voxel_fifo_occupancy[self.voxel_fifo.len()] += cycles;
     }
 
     /// Waveform signals at cycle `now`.
@@ -278,16 +327,11 @@ impl SdramModule {
     }
 }
 
-/// A sample's words and how many of them are used.
-type SampleWords = ([WordAddress; 8], usize);
-
 /// The interleaved SDRAM modules as the pipeline's voxel memory.
 pub struct SdramMemory {
     map: AddressMap,
     /// The cycle of the last `step`, for waveform probes.
     now: u64,
-    /// The last sample's words: a stalled sample is asked about every cycle.
-    last_words: std::cell::Cell<Option<([usize; 3], SampleWords)>>,
     modules: Vec<SdramModule>,
     /// Words still missing per tag (tags are compositing-buffer entry ids).
     missing: Vec<u8>,
@@ -304,7 +348,6 @@ impl SdramMemory {
         SdramMemory {
             map: AddressMap::new(config, dims),
             now: 0,
-            last_words: std::cell::Cell::new(None),
             modules: (0..config.modules())
                 .map(|_| SdramModule::new(config, timing))
                 .collect(),
@@ -313,15 +356,13 @@ impl SdramMemory {
         }
     }
 
-    fn words(&self, base: [usize; 3]) -> SampleWords {
-        match self.last_words.get() {
-            Some((b, words)) if b == base => words,
-            _ => {
-                let words = self.map.sample_words(base);
-                self.last_words.set(Some((base, words)));
-                words
-            }
+    /// Controllers that run every cycle instead of sleeping until their next possible
+    /// command: the reference that sleeping must equal (tests).
+    pub fn without_sleeping(mut self) -> Self {
+        for module in &mut self.modules {
+            module.sleeps = false;
         }
+        self
     }
 
     pub fn module_stats(&self) -> Vec<ModuleStats> {
@@ -330,23 +371,24 @@ impl SdramMemory {
 }
 
 impl VoxelMemory for SdramMemory {
-    fn can_accept(&self, request: &SampleRequest) -> bool {
+    fn try_push(&mut self, request: SampleRequest, now: u64) -> bool {
         let (words, n) = self.map.sample_words(request.base);
-        words[..n]
+        let words = &words[..n];
+        if !words
             .iter()
-            .all(|w| self.modules[w.module].can_accept())
-    }
-
-    fn push(&mut self, request: SampleRequest, now: u64) {
-        let (words, n) = self.words(request.base);
+            .all(|w| self.modules[w.module as usize].can_accept())
+        {
+            return false;
+        }
         let tag = request.tag as usize;
         if self.missing.len() <= tag {
             self.missing.resize(tag + 1, 0);
         }
         self.missing[tag] = n as u8;
-        for w in &words[..n] {
-            self.modules[w.module].push(request.tag as u32, *w, now);
+        for w in words {
+            self.modules[w.module as usize].push(request.tag as u32, *w, now);
         }
+        true
     }
 
     fn step(&mut self, now: u64, completed: &mut Vec<u64>) {
@@ -365,6 +407,12 @@ impl VoxelMemory for SdramMemory {
 
     fn is_idle(&self) -> bool {
         self.modules.iter().all(SdramModule::is_idle)
+    }
+
+    fn account_cycles(&mut self, cycles: u64) {
+        for module in &mut self.modules {
+            module.account_cycles(cycles);
+        }
     }
 
     fn next_event(&self, now: u64) -> Option<u64> {

@@ -13,14 +13,16 @@ pub struct SampleRequest {
 }
 
 pub trait VoxelMemory {
-    /// Whether the request can enter this cycle (every address FIFO it needs has room).
-    fn can_accept(&self, request: &SampleRequest) -> bool;
-    /// Enters a request at cycle `now` (the caller checked `can_accept`).
-    fn push(&mut self, request: SampleRequest, now: u64);
+    /// Enters a request at cycle `now` if it can enter (every address FIFO it needs has room);
+    /// false, and nothing changed, if not.
+    fn try_push(&mut self, request: SampleRequest, now: u64) -> bool;
     /// Advances one cycle and appends the tags of samples whose words are all in by `now`.
     fn step(&mut self, now: u64, completed: &mut Vec<u64>);
     /// Whether nothing is pending.
     fn is_idle(&self) -> bool;
+    /// The pipeline's clock moves on by `cycles` from the current state (for occupancy
+    /// histograms; nothing changes during those cycles).
+    fn account_cycles(&mut self, _cycles: u64) {}
     /// The earliest cycle after `now` at which stepping could change anything (None = never
     /// on its own); the pipeline jumps over the cycles between.
     fn next_event(&self, now: u64) -> Option<u64>;
@@ -50,13 +52,10 @@ impl IdealMemory {
 }
 
 impl VoxelMemory for IdealMemory {
-    fn can_accept(&self, _: &SampleRequest) -> bool {
-        true
-    }
-
-    fn push(&mut self, request: SampleRequest, now: u64) {
+    fn try_push(&mut self, request: SampleRequest, now: u64) -> bool {
         self.pending.push_back((now + self.latency, request.tag));
         self.requests += 1;
+        true
     }
 
     fn step(&mut self, now: u64, completed: &mut Vec<u64>) {
@@ -83,17 +82,17 @@ impl VoxelMemory for IdealMemory {
 }
 
 impl<M: VoxelMemory + ?Sized> VoxelMemory for Box<M> {
-    fn can_accept(&self, request: &SampleRequest) -> bool {
-        (**self).can_accept(request)
-    }
-    fn push(&mut self, request: SampleRequest, now: u64) {
-        (**self).push(request, now)
+    fn try_push(&mut self, request: SampleRequest, now: u64) -> bool {
+        (**self).try_push(request, now)
     }
     fn step(&mut self, now: u64, completed: &mut Vec<u64>) {
         (**self).step(now, completed)
     }
     fn is_idle(&self) -> bool {
         (**self).is_idle()
+    }
+    fn account_cycles(&mut self, cycles: u64) {
+        (**self).account_cycles(cycles)
     }
     fn next_event(&self, now: u64) -> Option<u64> {
         (**self).next_event(now)
