@@ -46,7 +46,7 @@ pub struct ClockConfig {
 pub struct RayQueueConfig {
     /// Rays in flight (R): each has one slot; a ray is busy while its update is in the skip unit.
     pub rays: usize,
-    /// Which ready ray issues: "round-robin" or "oldest-first".
+    /// Which ready ray issues: "round-robin", "oldest-first" or "lagging-first".
     pub selection: RaySelection,
     /// Pixel order: tiles of `tile = [w, h]` pixels so neighbouring rays travel together.
     pub tile: [u32; 2],
@@ -59,6 +59,9 @@ pub struct RayQueueConfig {
 pub enum RaySelection {
     RoundRobin,
     OldestFirst,
+    /// The ready ray with the fewest positions done (k), so rays in flight stay side by side
+    /// and their samples share memory rows; ties round-robin.
+    LaggingFirst,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

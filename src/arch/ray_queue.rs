@@ -99,6 +99,10 @@ impl RayQueue {
             RaySelection::RoundRobin => (0..n)
                 .map(|d| (self.next_round_robin + d) % n)
                 .find(|&i| ready(i)),
+            RaySelection::LaggingFirst => (0..n)
+                .map(|d| (self.next_round_robin + d) % n)
+                .filter(|&i| ready(i))
+                .min_by_key(|&i| self.slots[i].as_ref().map(|s| s.k)),
             RaySelection::OldestFirst => (0..n)
                 .filter(|&i| ready(i))
                 .min_by_key(|&i| self.slots[i].as_ref().map(|s| (s.admitted, s.ray_id))),

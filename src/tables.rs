@@ -1,0 +1,414 @@
+//! Tables of sweep results (`vizsim table`): one cell per (row, column) group, the metric
+//! averaged over the frames of that group. The default layout is the published one: rows
+//! dataset × classification ('0', class), columns the acceleration modes none, ERT, 2³ … 64³
+//! (and the hierarchy), cells the frame rate.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
+
+use serde_json::Value;
+
+use crate::error::{Error, Result};
+
+/// Reads a results file (one JSON object per line). A torn last line (a sweep killed while
+/// writing) is ignored; any other malformed line is an error naming the file and line.
+pub fn read_results(path: &Path) -> Result<Vec<Value>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let complete = text.ends_with('\n');
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out = Vec::with_capacity(lines.len());
+    for (i, line) in lines.iter().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        match serde_json::from_str::<Value>(line) {
+            Ok(v) if v.is_object() => out.push(v),
+            _ if i + 1 == lines.len() && !complete => {}
+            _ => {
+                return Err(Error::format(
+                    path,
+                    format!("line {}: not a JSON object", i + 1),
+                ))
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// What a cell shows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Metric {
+    /// Frames per second (step model: 1 / (steps × clock.step_time_ns); cycle model: clock / cycles).
+    Fps,
+    /// Clock cycles per frame (cycle model).
+    Cycles,
+    /// Steps (samples + leaps) per frame.
+    Steps,
+    /// Samples per frame.
+    Samples,
+    /// SDRAM row (page) hit rate, % (cycle model).
+    PageHits,
+    /// Average ns per voxel access (cycle model).
+    NsPerAccess,
+    /// Samples discarded after ERT (cycle model).
+    DiscardedAfterErt,
+    /// Memory stall cycles (cycle model).
+    MemoryStalls,
+    /// Skippable (empty) sub-cubes, %.
+    Skippable,
+}
+
+impl Metric {
+    pub fn label(self) -> &'static str {
+        match self {
+            Metric::Fps => "frame rate (fps)",
+            Metric::Cycles => "cycles per frame",
+            Metric::Steps => "steps per frame",
+            Metric::Samples => "samples per frame",
+            Metric::PageHits => "row (page) hit rate (%)",
+            Metric::NsPerAccess => "ns per voxel access",
+            Metric::DiscardedAfterErt => "samples discarded after ERT per frame",
+            Metric::MemoryStalls => "memory stall cycles per frame",
+            Metric::Skippable => "skippable sub-cubes (%)",
+        }
+    }
+
+    pub fn file_name(self) -> &'static str {
+        match self {
+            Metric::Fps => "fps",
+            Metric::Cycles => "cycles",
+            Metric::Steps => "steps",
+            Metric::Samples => "samples",
+            Metric::PageHits => "page-hits",
+            Metric::NsPerAccess => "ns-per-access",
+            Metric::DiscardedAfterErt => "discarded-after-ert",
+            Metric::MemoryStalls => "memory-stalls",
+            Metric::Skippable => "skippable",
+        }
+    }
+
+    /// The metric's value in one result line (None when the line's model does not have it).
+    pub fn value(self, line: &Value) -> Option<f64> {
+        let field = |name: &str| line.get(name).and_then(Value::as_f64);
+        match self {
+            Metric::Fps => field("fps"),
+            Metric::Cycles => field("cycles"),
+            Metric::Steps => field("steps"),
+            Metric::Samples => field("samples"),
+            Metric::PageHits => field("page_hit_rate").map(|r| 100.0 * r),
+            Metric::NsPerAccess => field("avg_ns_per_voxel_access"),
+            Metric::DiscardedAfterErt => field("discarded_after_ert"),
+            Metric::MemoryStalls => line
+                .get("stall_cycles")
+                .and_then(|s| s.get("memory"))
+                .and_then(Value::as_f64),
+            Metric::Skippable => field("skippable_subcubes_percent"),
+        }
+    }
+}
+
+/// A grouping field of a result line: a top-level field (`dataset`, `tf`, `mode`, `model`,
+/// `frame`) or a swept hardware field by its dotted path (`ray_queue.rays`).
+pub fn field_text(line: &Value, field: &str) -> Option<String> {
+    let value = match field {
+        "dataset" => line.get("dataset_label").or_else(|| line.get("dataset")),
+        _ => line
+            .get(field)
+            .or_else(|| line.get("axes").and_then(|a| a.get(field))),
+    }?;
+    Some(match value {
+        Value::String(s) => s.clone(),
+        other => other.to_string(),
+    })
+}
+
+/// How modes are named in column headers and in which order they appear.
+pub fn mode_label(mode: &str) -> String {
+    let mut parts = Vec::new();
+    let mut size = None;
+    let mut hierarchy = false;
+    let mut ert = false;
+    for token in mode.split('+') {
+        match token {
+            "ert" => ert = true,
+            "hier" => hierarchy = true,
+            t if t.starts_with("leap") => size = Some(t.trim_start_matches("leap").to_string()),
+            "none" => {}
+            t => parts.push(t.to_string()),
+        }
+    }
+    match (size, ert) {
+        (None, true) => "ERT".into(),
+        (None, false) if parts.is_empty() => "none".into(),
+        (Some(s), e) => format!(
+            "{}{s}³{}",
+            if e { "" } else { "no ERT, " },
+            if hierarchy { "+h" } else { "" }
+        ),
+        _ => mode.to_string(),
+    }
+}
+
+fn sort_key(field: &str, text: &str) -> (i64, String) {
+    match field {
+        "mode" => {
+            let rank = if text == "none" {
+                0
+            } else if text == "ert" {
+                1
+            } else {
+                let size: i64 = text
+                    .split('+')
+                    .find_map(|t| t.strip_prefix("leap"))
+                    .and_then(|n| n.parse().ok())
+                    .unwrap_or(999);
+                10 + size * 4 + text.contains("hier") as i64 + 2 * (!text.contains("ert")) as i64
+            };
+            (rank, text.to_string())
+        }
+        "tf" => ((text != "zero") as i64, text.to_string()),
+        _ => match text.parse::<f64>() {
+            Ok(v) => ((v * 1000.0) as i64, text.to_string()),
+            Err(_) => (0, text.to_string()),
+        },
+    }
+}
+
+fn display(field: &str, text: &str) -> String {
+    match field {
+        "mode" => mode_label(text),
+        "tf" if text == "zero" => "'0'".into(),
+        _ => text.to_string(),
+    }
+}
+
+/// One table: rows × columns of means over the frames of each cell.
+pub struct Table {
+    pub title: String,
+    pub row_fields: Vec<String>,
+    pub column_field: String,
+    pub rows: Vec<(Vec<String>, Vec<Option<f64>>)>,
+    pub columns: Vec<String>,
+    /// Cells (row, column) whose leaping map does not fit the default SRAM (run with more).
+    pub raised_sram: BTreeSet<(usize, usize)>,
+    pub stand_ins: BTreeSet<String>,
+}
+
+/// Builds the table of `metric` for the lines of one model. Every field that varies among the
+/// lines, other than the frame, must be a row or the column field: averaging over a swept
+/// hardware field silently would mix configurations.
+pub fn build(
+    lines: &[&Value],
+    metric: Metric,
+    row_fields: &[String],
+    column_field: &str,
+    title: String,
+) -> Result<Table> {
+    let mut varying = BTreeSet::new();
+    let mut first: BTreeMap<String, String> = BTreeMap::new();
+    for line in lines {
+        let mut fields: Vec<String> = ["dataset", "tf", "mode", "model"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        if let Some(axes) = line.get("axes").and_then(Value::as_object) {
+            fields.extend(axes.keys().cloned());
+        }
+        for f in fields {
+            let v = field_text(line, &f).unwrap_or_default();
+            match first.get(&f) {
+                None => {
+                    first.insert(f, v);
+                }
+                Some(seen) if *seen != v => {
+                    varying.insert(f);
+                }
+                _ => {}
+            }
+        }
+    }
+    for f in &varying {
+        if !row_fields.contains(f) && column_field != f {
+            return Err(Error::Invalid(format!(
+                "`{f}` varies among the results; add it to --rows or --columns (rows: {}, columns: {column_field})",
+                row_fields.join(",")
+            )));
+        }
+    }
+    type Key = Vec<(i64, String)>;
+    let mut cells: BTreeMap<(Key, (i64, String)), (f64, u32, bool)> = BTreeMap::new();
+    let mut stand_ins = BTreeSet::new();
+    for line in lines {
+        let Some(value) = metric.value(line) else {
+            continue;
+        };
+        let row: Key = row_fields
+            .iter()
+            .map(|f| sort_key(f, &field_text(line, f).unwrap_or_default()))
+            .collect();
+        let column = sort_key(
+            column_field,
+            &field_text(line, column_field).unwrap_or_default(),
+        );
+        let raised = line.get("fits_default_sram") == Some(&Value::Bool(false));
+        if line.get("stand_in") == Some(&Value::Bool(true)) {
+            stand_ins.extend(field_text(line, "dataset"));
+        }
+        let cell = cells.entry((row, column)).or_insert((0.0, 0, false));
+        cell.0 += value;
+        cell.1 += 1;
+        cell.2 |= raised;
+    }
+    let row_keys: Vec<Key> = cells
+        .keys()
+        .map(|(r, _)| r.clone())
+        .collect::<BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    let column_keys: Vec<(i64, String)> = cells
+        .keys()
+        .map(|(_, c)| c.clone())
+        .collect::<BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    let mut raised_sram = BTreeSet::new();
+    let rows = row_keys
+        .iter()
+        .enumerate()
+        .map(|(ri, r)| {
+            let values = column_keys
+                .iter()
+                .enumerate()
+                .map(|(ci, c)| {
+                    cells.get(&(r.clone(), c.clone())).map(|&(sum, n, raised)| {
+                        if raised {
+                            raised_sram.insert((ri, ci));
+                        }
+                        sum / n as f64
+                    })
+                })
+                .collect();
+            let labels = row_fields
+                .iter()
+                .zip(r)
+                .map(|(f, (_, t))| display(f, t))
+                .collect();
+            (labels, values)
+        })
+        .collect();
+    Ok(Table {
+        title,
+        row_fields: row_fields.to_vec(),
+        column_field: column_field.to_string(),
+        rows,
+        columns: column_keys
+            .iter()
+            .map(|(_, t)| display(column_field, t))
+            .collect(),
+        raised_sram,
+        stand_ins,
+    })
+}
+
+fn format_value(v: f64) -> String {
+    let a = v.abs();
+    if a >= 1e6 {
+        format!("{:.2} M", v / 1e6)
+    } else if a >= 1000.0 {
+        format!("{:.0}", v)
+    } else if a >= 100.0 {
+        format!("{:.1}", v)
+    } else {
+        format!("{:.2}", v)
+    }
+}
+
+impl Table {
+    pub fn markdown(&self) -> String {
+        let mut s = format!("### {}\n\n", self.title);
+        let header: Vec<String> = self
+            .row_fields
+            .iter()
+            .cloned()
+            .chain(self.columns.iter().cloned())
+            .collect();
+        s += &format!("| {} |\n", header.join(" | "));
+        s += &format!(
+            "|{}|\n",
+            header
+                .iter()
+                .enumerate()
+                .map(|(i, _)| if i < self.row_fields.len() {
+                    "---"
+                } else {
+                    "---:"
+                })
+                .collect::<Vec<_>>()
+                .join("|")
+        );
+        for (ri, (labels, values)) in self.rows.iter().enumerate() {
+            let cells: Vec<String> = values
+                .iter()
+                .enumerate()
+                .map(|(ci, v)| match v {
+                    Some(v) => {
+                        let mark = if self.raised_sram.contains(&(ri, ci)) {
+                            "*"
+                        } else {
+                            ""
+                        };
+                        format!("{}{mark}", format_value(*v))
+                    }
+                    None => "–".into(),
+                })
+                .collect();
+            let labels: Vec<String> = labels
+                .iter()
+                .map(|l| {
+                    if self.stand_ins.contains(l) {
+                        format!("{l} †")
+                    } else {
+                        l.clone()
+                    }
+                })
+                .collect();
+            s += &format!("| {} | {} |\n", labels.join(" | "), cells.join(" | "));
+        }
+        if !self.raised_sram.is_empty() {
+            s += "\n\\* the occupancy map does not fit the default SRAM (occupancy.sram_bits); run with the SRAM raised.\n";
+        }
+        if !self.stand_ins.is_empty() {
+            s += "\n† stand-in dataset (see docs/results.md): not the published data.\n";
+        }
+        s
+    }
+
+    pub fn csv(&self) -> String {
+        let mut s = String::new();
+        let header: Vec<String> = self
+            .row_fields
+            .iter()
+            .cloned()
+            .chain(self.columns.iter().cloned())
+            .collect();
+        s += &header.join(",");
+        s += "\n";
+        for (labels, values) in &self.rows {
+            let cells: Vec<String> = values
+                .iter()
+                .map(|v| v.map(|v| format!("{v}")).unwrap_or_default())
+                .collect();
+            let labels: Vec<String> = labels.iter().map(|l| csv_field(l)).collect();
+            s += &format!("{},{}\n", labels.join(","), cells.join(","));
+        }
+        s
+    }
+}
+
+fn csv_field(text: &str) -> String {
+    if text.contains([',', '"', '\n']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_string()
+    }
+}
