@@ -9,6 +9,8 @@ pub mod camera;
 pub mod compare;
 pub mod config;
 pub mod error;
+pub mod experiment;
+pub mod figures;
 pub mod fixed;
 pub mod functional;
 pub mod occupancy;
@@ -18,6 +20,7 @@ pub mod precision;
 pub mod render;
 pub mod shading;
 pub mod skip;
+pub mod tables;
 pub mod transfer;
 pub mod volume;
 

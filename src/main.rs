@@ -118,6 +118,64 @@ enum Command {
         #[command(flatten)]
         hardware: HardwareArgs,
     },
+    /// Run an experiment file (configs/experiments/): every run in parallel, results appended
+    /// to OUT/results.jsonl as they finish; re-running resumes.
+    Sweep {
+        /// The experiment TOML.
+        experiment: PathBuf,
+        /// Output folder (results.jsonl, timing.jsonl, experiment.resolved.json).
+        #[arg(long)]
+        out: PathBuf,
+        /// Print the runs, what is already done and a time estimate; run nothing.
+        #[arg(long)]
+        dry_run: bool,
+        /// Run only runs i with i mod N = I (I/N, 0-based): for clusters; `vizsim merge` joins.
+        #[arg(long)]
+        shard: Option<String>,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+        /// Run only this model's runs (`step` or `cycle`), e.g. to time them apart.
+        #[arg(long)]
+        model: Option<String>,
+        #[command(flatten)]
+        data: DataArgs,
+    },
+    /// Merge sweep folders (shards) into one, results sorted by key.
+    Merge {
+        /// Sweep folders.
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Tables of a sweep's results (Markdown and CSV): rows dataset x classification, columns
+    /// the acceleration modes, cells averaged over the frames.
+    Table {
+        /// Sweep folder (holding results.jsonl).
+        dir: PathBuf,
+        /// Metrics (one table each per model; default fps, cycles, steps, page-hits).
+        #[arg(long, value_enum, value_delimiter = ',')]
+        metric: Vec<vizsim::tables::Metric>,
+        /// Row fields, comma-separated: dataset, tf, mode, model, frame or a swept field path.
+        #[arg(long, default_value = "dataset,tf", value_delimiter = ',')]
+        rows: Vec<String>,
+        /// Column field.
+        #[arg(long, default_value = "mode")]
+        columns: String,
+        /// Output folder (default DIR/tables).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Charts of a sweep's results (PNG + SVG): cycles or steps per frame against the frame,
+    /// skippable sub-cubes and frame rate against the sub-cube size, swept fields.
+    Plot {
+        /// Sweep folder (holding results.jsonl).
+        dir: PathBuf,
+        /// Output folder (default DIR/plots).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Render orbits and a gallery of the phantoms and the datasets present into reports/demo/.
     Demo {
         #[command(flatten)]
@@ -404,6 +462,43 @@ fn run(cli: Cli) -> Result<()> {
             hardware,
         } => precision(&dataset, &data, &tf, &view, &size, &out, &hardware),
         Command::Compare { a, b, json, diff } => compare(&a, &b, json.as_deref(), diff.as_deref()),
+        Command::Sweep {
+            experiment,
+            out,
+            dry_run,
+            shard,
+            quiet,
+            model,
+            data,
+        } => sweep(
+            &experiment,
+            &out,
+            dry_run,
+            shard.as_deref(),
+            model.as_deref(),
+            quiet,
+            &data,
+        ),
+        Command::Merge { inputs, out } => {
+            let inputs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+            let n = vizsim::experiment::merge(&inputs, &out)?;
+            println!("{n} runs -> {}", out.join("results.jsonl").display());
+            Ok(())
+        }
+        Command::Table {
+            dir,
+            metric,
+            rows,
+            columns,
+            out,
+        } => table(&dir, &metric, &rows, &columns, out.as_deref()),
+        Command::Plot { dir, out } => {
+            let out = out.unwrap_or_else(|| dir.join("plots"));
+            let lines = vizsim::tables::read_results(&dir.join("results.jsonl"))?;
+            let written = vizsim::figures::write_all(&lines, &out)?;
+            println!("{written} charts -> {}", out.display());
+            Ok(())
+        }
     }
 }
 
@@ -989,6 +1084,44 @@ fn demo(data: &DataArgs, out: &Path, frames: u32) -> Result<()> {
             path.display()
         );
     }
+    quick_experiment(dir.as_deref(), &out.join("quick"))
+}
+
+/// The quick experiment (configs/experiments/quick.toml, embedded): sweep, tables and charts.
+/// Without the data folder its real datasets are left out.
+fn quick_experiment(data_dir: Option<&Path>, out: &Path) -> Result<()> {
+    use vizsim::experiment::{self, spec};
+    const QUICK: &str = include_str!("../configs/experiments/quick.toml");
+    let mut file: spec::ExperimentFile = toml::from_str(QUICK)?;
+    file.datasets.retain(|d| {
+        let present = dataset::load(d, data_dir).is_ok();
+        if !present {
+            println!("quick experiment: {d} is not there, left out");
+        }
+        present
+    });
+    let expansion = spec::expand(
+        &toml::to_string(&file)?,
+        "configs/experiments/quick.toml",
+        data_dir,
+    )?;
+    let summary = experiment::sweep(&expansion, out, None, false)?;
+    println!(
+        "quick experiment: {} runs in {:.1} s -> {}",
+        summary.total,
+        summary.wall_seconds,
+        out.display()
+    );
+    table(
+        out,
+        &[],
+        &["dataset".to_string(), "tf".to_string()],
+        "mode",
+        None,
+    )?;
+    let lines = vizsim::tables::read_results(&out.join("results.jsonl"))?;
+    let charts = vizsim::figures::write_all(&lines, &out.join("plots"))?;
+    println!("{charts} charts -> {}", out.join("plots").display());
     Ok(())
 }
 
@@ -1031,5 +1164,138 @@ fn write_contact_sheet(frames: &[&Frame], columns: usize, path: &Path) -> Result
         rays: Vec::new(),
     };
     sheet.write_png(path)?;
+    Ok(())
+}
+
+fn sweep(
+    experiment: &Path,
+    out: &Path,
+    dry_run: bool,
+    shard: Option<&str>,
+    model: Option<&str>,
+    quiet: bool,
+    data: &DataArgs,
+) -> Result<()> {
+    use std::io::IsTerminal;
+    use vizsim::experiment::{self, spec, Shard};
+    let shard = shard.map(Shard::parse).transpose()?;
+    let dir = dataset::data_dir(data.data_dir.as_deref());
+    let mut expansion = spec::load(experiment, dir.as_deref())?;
+    if let Some(model) = model {
+        anyhow::ensure!(
+            model == "step" || model == "cycle",
+            "--model {model}: expected `step` or `cycle`"
+        );
+        expansion.runs.retain(|r| r.model.name() == model);
+    }
+    let mine: Vec<&spec::RunSpec> = expansion
+        .runs
+        .iter()
+        .filter(|r| shard.is_none_or(|s| s.contains(r)))
+        .collect();
+    let done = experiment::store::read_lines(&out.join(experiment::store::RESULTS))?
+        .into_iter()
+        .filter_map(|(v, _)| v.get("key").and_then(|k| k.as_str()).map(str::to_string))
+        .collect::<std::collections::HashSet<_>>();
+    let pending: Vec<&spec::RunSpec> = mine
+        .iter()
+        .copied()
+        .filter(|r| !done.contains(&r.key))
+        .collect();
+    let count = |model| pending.iter().filter(|r| r.model == model).count();
+    let threads = rayon::current_num_threads();
+    println!(
+        "{}: {} runs{} ({} step model, {} cycle model to run; {} already done in {}); estimate {:.0} s on {threads} threads",
+        expansion.experiment.name,
+        mine.len(),
+        shard.map(|s| format!(" in shard {}/{}", s.index, s.count)).unwrap_or_default(),
+        count(spec::Model::Step),
+        count(spec::Model::Cycle),
+        mine.len() - pending.len(),
+        out.display(),
+        experiment::estimate_seconds(&expansion, &pending, threads),
+    );
+    for s in &expansion.skipped {
+        println!("  left out: {} {}: {}", s.dataset, s.mode, s.reason);
+    }
+    let raised = mine.iter().filter(|r| !r.fits_default_sram).count();
+    if raised > 0 {
+        println!(
+            "  {raised} runs with occupancy.sram_bits raised (map larger than the default SRAM)"
+        );
+    }
+    if dry_run {
+        return Ok(());
+    }
+    let progress = !quiet && std::io::stderr().is_terminal();
+    let summary = experiment::sweep(&expansion, out, shard, progress)?;
+    println!(
+        "ran {} runs in {:.1} s ({} were already done) -> {}",
+        summary.ran,
+        summary.wall_seconds,
+        summary.already_done,
+        out.join(experiment::store::RESULTS).display()
+    );
+    Ok(())
+}
+
+fn table(
+    dir: &Path,
+    metrics: &[vizsim::tables::Metric],
+    rows: &[String],
+    columns: &str,
+    out: Option<&Path>,
+) -> Result<()> {
+    use vizsim::tables::{self, Metric};
+    let lines = tables::read_results(&dir.join("results.jsonl"))?;
+    anyhow::ensure!(!lines.is_empty(), "{}: no results", dir.display());
+    let out = out
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| dir.join("tables"));
+    let metrics = if metrics.is_empty() {
+        vec![Metric::Fps, Metric::Cycles, Metric::Steps, Metric::PageHits]
+    } else {
+        metrics.to_vec()
+    };
+    let mut all_markdown = String::new();
+    for model in ["step", "cycle"] {
+        let of_model: Vec<&serde_json::Value> = lines
+            .iter()
+            .filter(|l| l.get("model").and_then(|m| m.as_str()) == Some(model))
+            .collect();
+        if of_model.is_empty() {
+            continue;
+        }
+        for &metric in &metrics {
+            if !of_model.iter().any(|l| metric.value(l).is_some()) {
+                continue;
+            }
+            let clock = match model {
+                "step" => "step model, published cost 12.5 ns per step",
+                _ => "cycle-accurate model at its clock",
+            };
+            let title = format!("{} ({clock}), mean over frames", metric.label());
+            let rows_here: Vec<String> = rows.iter().filter(|r| *r != "model").cloned().collect();
+            let table = tables::build(&of_model, metric, &rows_here, columns, title)?;
+            let stem = out.join(format!("{model}-{}", metric.file_name()));
+            let md = table.markdown();
+            vizsim::output::write_atomically(&stem.with_extension("md"), |w| {
+                std::io::Write::write_all(w, md.as_bytes())
+            })?;
+            let csv = table.csv();
+            vizsim::output::write_atomically(&stem.with_extension("csv"), |w| {
+                std::io::Write::write_all(w, csv.as_bytes())
+            })?;
+            if metric == Metric::Fps {
+                println!("{md}");
+            }
+            all_markdown += &md;
+            all_markdown += "\n";
+        }
+    }
+    vizsim::output::write_atomically(&out.join("tables.md"), |w| {
+        std::io::Write::write_all(w, all_markdown.as_bytes())
+    })?;
+    println!("tables -> {}", out.display());
     Ok(())
 }

@@ -17,6 +17,8 @@ pub struct LineChart<'a> {
     pub x_label: &'a str,
     pub y_label: &'a str,
     pub series: Vec<Series>,
+    /// Logarithmic y axis (for values spanning decades, e.g. cycles per frame across modes).
+    pub log_y: bool,
 }
 
 const PALETTE: [RGBColor; 8] = [
@@ -83,18 +85,88 @@ impl LineChart<'_> {
         if x0 > x1 {
             (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
         }
-        let pad = ((y1 - y0) * 0.05).max(1e-9);
-        let mut chart = ChartBuilder::on(&area)
+        let mut builder = ChartBuilder::on(&area);
+        builder
             .caption(self.title, ("sans-serif", 22))
             .margin(14)
             .x_label_area_size(44)
-            .y_label_area_size(64)
-            .build_cartesian_2d(x0..x1.max(x0 + 1e-9), (y0 - pad)..(y1 + pad))
-            .map_err(err)?;
+            .y_label_area_size(72);
+        let x_range = x0..x1.max(x0 + 1e-9);
+        // A log axis only pays when the values span a decade; below that plotters has few
+        // labels to put on it.
+        let positive_min = self
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter().map(|p| p.1))
+            .filter(|y| y.is_finite() && *y > 0.0)
+            .fold(f64::MAX, f64::min);
+        if self.log_y && y1 / positive_min > 8.0 {
+            let low = self
+                .series
+                .iter()
+                .flat_map(|s| s.points.iter().map(|p| p.1))
+                .filter(|y| y.is_finite() && *y > 0.0)
+                .fold(f64::MAX, f64::min)
+                .min(y1.max(1e-9))
+                / 1.3;
+            let chart = builder
+                .build_cartesian_2d(x_range, (low..(y1.max(low) * 1.3)).log_scale())
+                .map_err(err)?;
+            self.draw_lines(chart, true)?;
+        } else {
+            let pad = ((y1 - y0) * 0.05).max(1e-9);
+            let chart = builder
+                .build_cartesian_2d(x_range, (y0 - pad)..(y1 + pad))
+                .map_err(err)?;
+            self.draw_lines(chart, false)?;
+        }
+        area.present().map_err(err)?;
+        Ok(())
+    }
+
+    fn draw_lines<'a, DB: DrawingBackend + 'a, Y>(
+        &self,
+        mut chart: ChartContext<'a, DB, Cartesian2d<plotters::coord::types::RangedCoordf64, Y>>,
+        log: bool,
+    ) -> std::result::Result<(), String>
+    where
+        DB::ErrorType: 'static,
+        Y: Ranged<ValueType = f64> + plotters::coord::ranged1d::ValueFormatter<f64>,
+    {
+        let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+        // Integer x values (frames, exponents, counts) get integer ticks.
+        let xs: Vec<f64> = self
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter().map(|p| p.0))
+            .filter(|x| x.is_finite())
+            .collect();
+        let integer_x = !xs.is_empty() && xs.iter().all(|x| x.fract() == 0.0);
+        let span =
+            xs.iter().fold(f64::MIN, |a, &b| a.max(b)) - xs.iter().fold(f64::MAX, |a, &b| a.min(b));
+        let x_ticks = if integer_x && span <= 12.0 {
+            span as usize + 1
+        } else {
+            10
+        };
+        let x_format = |x: &f64| {
+            if integer_x {
+                format!("{}", x.round() as i64)
+            } else {
+                format!("{x:.2}")
+            }
+        };
         chart
             .configure_mesh()
             .x_desc(self.x_label)
-            .y_desc(self.y_label)
+            .y_desc(if log {
+                format!("{} (log scale)", self.y_label)
+            } else {
+                self.y_label.to_string()
+            })
+            .x_labels(x_ticks)
+            .x_label_formatter(&x_format)
+            .y_label_formatter(&|y: &f64| si_number(*y))
             .label_style(("sans-serif", 15))
             .draw()
             .map_err(err)?;
@@ -104,7 +176,7 @@ impl LineChart<'_> {
                 .points
                 .iter()
                 .copied()
-                .filter(|(x, y)| x.is_finite() && y.is_finite())
+                .filter(|(x, y)| x.is_finite() && y.is_finite() && (!log || *y > 0.0))
                 .collect();
             chart
                 .draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))
@@ -124,7 +196,27 @@ impl LineChart<'_> {
             .label_font(("sans-serif", 15))
             .draw()
             .map_err(err)?;
-        area.present().map_err(err)?;
         Ok(())
+    }
+}
+
+/// Axis numbers: 1.5M, 250k, 12.5, 0.25.
+fn si_number(v: f64) -> String {
+    let a = v.abs();
+    let trim = |t: String| {
+        if t.contains('.') {
+            t.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            t
+        }
+    };
+    if a >= 1e6 {
+        format!("{}M", trim(format!("{:.2}", v / 1e6)))
+    } else if a >= 1e4 {
+        format!("{}k", trim(format!("{:.1}", v / 1e3)))
+    } else if a >= 10.0 {
+        trim(format!("{v:.1}"))
+    } else {
+        trim(format!("{v:.3}"))
     }
 }

@@ -225,6 +225,7 @@ pub fn write_report(report: &PrecisionReport, out_dir: &Path) -> Result<Vec<Path
         (
             "psnr",
             LineChart {
+                log_y: false,
                 title: &title,
                 x_label: "bits of the swept field",
                 y_label: "PSNR vs float (dB, higher is better)",
@@ -235,6 +236,7 @@ pub fn write_report(report: &PrecisionReport, out_dir: &Path) -> Result<Vec<Path
         (
             "max-error",
             LineChart {
+                log_y: false,
                 title: &title,
                 x_label: "bits of the swept field",
                 y_label: "max |error| over channels (8-bit steps)",
@@ -252,6 +254,7 @@ pub fn write_report(report: &PrecisionReport, out_dir: &Path) -> Result<Vec<Path
         report.dataset
     );
     let cost_chart = LineChart {
+        log_y: false,
         title: &cost_title,
         x_label: "bits of the swept field",
         y_label: "steps per frame (samples + leaps)",

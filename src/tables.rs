@@ -236,7 +236,9 @@ pub fn build(
         }
     }
     type Key = Vec<(i64, String)>;
-    let mut cells: BTreeMap<(Key, (i64, String)), (f64, u32, bool)> = BTreeMap::new();
+    /// Sum, count, and whether any line ran with the SRAM raised.
+    type Cell = (f64, u32, bool);
+    let mut cells: BTreeMap<(Key, (i64, String)), Cell> = BTreeMap::new();
     let mut stand_ins = BTreeSet::new();
     for line in lines {
         let Some(value) = metric.value(line) else {

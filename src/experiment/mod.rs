@@ -1,0 +1,336 @@
+//! Experiments at scale: expand an experiment file into runs (`spec`), run them in parallel
+//! and keep every finished result (`store`), combine shards (`merge`).
+//!
+//! Results are deterministic JSON lines (no wall time, no thread count): the same run gives
+//! the same line on any machine, so a resumed, sharded or merged sweep is comparable line by
+//! line with an uninterrupted one. Wall times go to `timing.jsonl` beside the results.
+
+pub mod spec;
+pub mod store;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Mutex;
+use std::time::Instant;
+
+use rayon::prelude::*;
+use serde_json::{json, Value};
+
+use crate::arch::pipeline::simulate;
+use crate::arch::sdram_module::SdramMemory;
+use crate::arch::voxel_memory::VoxelMemory;
+use crate::camera::{Camera, View};
+use crate::error::{Error, Result};
+use crate::functional::renderer::{FixedRenderer, Leaping};
+use crate::render::RenderSettings;
+use crate::transfer;
+use spec::{dataset_label, Expansion, Model, RunSpec};
+use store::ResultStore;
+
+/// `--shard I/N`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct Shard {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl Shard {
+    pub fn parse(text: &str) -> Result<Shard> {
+        let bad = || Error::config("--shard", text, "expected I/N with 0 <= I < N (e.g. 0/4)");
+        let (i, n) = text.split_once('/').ok_or_else(bad)?;
+        let (index, count): (usize, usize) = (
+            i.trim().parse().map_err(|_| bad())?,
+            n.trim().parse().map_err(|_| bad())?,
+        );
+        if count == 0 || index >= count {
+            return Err(bad());
+        }
+        Ok(Shard { index, count })
+    }
+
+    pub fn contains(&self, run: &RunSpec) -> bool {
+        run.index % self.count == self.index
+    }
+}
+
+/// Runs of one frame group share the renderer (occupancy map, tables): built once.
+fn renderer_for<'v>(
+    run: &RunSpec,
+    volume: &'v crate::volume::Volume,
+) -> Result<(FixedRenderer<'v>, String)> {
+    let tf = transfer::resolve(&run.tf, &volume.name)?;
+    let config = &run.config;
+    let settings = RenderSettings {
+        ert_threshold: config
+            .compositing
+            .ert
+            .then_some(config.compositing.ert_threshold as f32),
+        ..RenderSettings::default()
+    };
+    let renderer =
+        FixedRenderer::new(volume, &tf, &settings, config, Leaping::from_config(config))?;
+    Ok((renderer, tf.name))
+}
+
+/// Runs one frame and returns its result line.
+fn run_frame(
+    run: &RunSpec,
+    renderer: &FixedRenderer,
+    tf_name: &str,
+    experiment: &str,
+    volume: &crate::volume::Volume,
+) -> Result<Value> {
+    let config = &run.config;
+    let camera = Camera::for_volume(
+        glam::Vec3::from(volume.extent()),
+        View::parse(&run.view)?,
+        run.projection,
+        run.size.0,
+        run.size.1,
+    )?;
+    let (label, stand_in) = dataset_label(&run.dataset);
+    let mut line = json!({
+        "key": run.key,
+        "experiment": experiment,
+        "dataset": run.dataset,
+        "dataset_label": label,
+        "stand_in": stand_in,
+        "tf": run.tf,
+        "transfer_function": tf_name,
+        "mode": run.mode.name(),
+        "model": run.model,
+        "frame": run.frame,
+        "view": run.view,
+        "width": run.size.0,
+        "height": run.size.1,
+        "axes": run.axes,
+        "ert": run.mode.ert,
+        "subcube": run.mode.subcube,
+        "hierarchy": run.mode.hierarchy,
+        "fits_default_sram": run.fits_default_sram,
+        "sram_bits": config.occupancy.sram_bits,
+    });
+    let obj = line.as_object_mut().expect("object");
+    if let Some(map) = &renderer.map {
+        obj.insert(
+            "skippable_subcubes_percent".into(),
+            json!(100.0 * map.empty_subcubes() as f64 / map.subcubes().max(1) as f64),
+        );
+    }
+    match run.model {
+        Model::Step => {
+            let stats = renderer.render(&camera).stats();
+            let ns = stats.steps() as f64 * config.clock.step_time_ns;
+            obj.insert("steps".into(), json!(stats.steps()));
+            obj.insert("samples".into(), json!(stats.samples));
+            obj.insert("leaps".into(), json!(stats.leaps));
+            obj.insert(
+                "rays_terminated_early".into(),
+                json!(stats.rays_terminated_early),
+            );
+            obj.insert("frame_time_ns".into(), json!(ns));
+            obj.insert("fps".into(), json!(1e9 / ns.max(1e-9)));
+        }
+        Model::Cycle => {
+            config
+                .memory
+                .check_covers(volume.dims, "hardware configuration")?;
+            let mut memory = SdramMemory::new(
+                &config.memory,
+                &config.sdram,
+                volume.dims,
+                config.clock.frequency_mhz,
+            );
+            let result = simulate(
+                renderer,
+                &camera,
+                &renderer.skipper(),
+                &mut memory,
+                config,
+                true,
+                None,
+            )?;
+            let s = &result.stats;
+            let ns = s.cycles as f64 * 1e3 / config.clock.frequency_mhz;
+            let m = memory.stats_json();
+            obj.insert("cycles".into(), json!(s.cycles));
+            obj.insert("steps".into(), json!(s.steps));
+            obj.insert("samples".into(), json!(s.samples));
+            obj.insert("leaps".into(), json!(s.leaps));
+            obj.insert(
+                "rays_terminated_early".into(),
+                json!(s.rays_terminated_early),
+            );
+            obj.insert("discarded_after_ert".into(), json!(s.discarded_after_ert));
+            obj.insert("stall_cycles".into(), json!(s.stall_cycles));
+            obj.insert("frame_time_ns".into(), json!(ns));
+            obj.insert("fps".into(), json!(1e9 / ns.max(1e-9)));
+            for field in [
+                "row_hits",
+                "row_misses",
+                "refreshes",
+                "avg_ns_per_voxel_access",
+            ] {
+                obj.insert(field.into(), m[field].clone());
+            }
+            obj.insert("page_hit_rate".into(), m["row_hit_rate"].clone());
+        }
+    }
+    Ok(line)
+}
+
+/// What a sweep did.
+#[derive(Debug, Default)]
+pub struct SweepSummary {
+    pub total: usize,
+    pub already_done: usize,
+    pub ran: usize,
+    pub torn_lines_dropped: usize,
+    pub wall_seconds: f64,
+}
+
+/// Runs the pending runs of `expansion` (those in `shard`, not yet in `out`), appending each
+/// result line to `out/results.jsonl` as it finishes.
+pub fn sweep(
+    expansion: &Expansion,
+    out: &Path,
+    shard: Option<Shard>,
+    progress: bool,
+) -> Result<SweepSummary> {
+    let start = Instant::now();
+    let mine: Vec<&RunSpec> = expansion
+        .runs
+        .iter()
+        .filter(|r| shard.is_none_or(|s| s.contains(r)))
+        .collect();
+    let store = ResultStore::open(out)?;
+    store.write_resolved(expansion, shard)?;
+    let pending: Vec<&RunSpec> = mine
+        .iter()
+        .copied()
+        .filter(|r| !store.has(&r.key))
+        .collect();
+    let mut summary = SweepSummary {
+        total: mine.len(),
+        already_done: mine.len() - pending.len(),
+        torn_lines_dropped: store.torn_lines_dropped,
+        ..Default::default()
+    };
+    let bar = if progress {
+        let bar = indicatif::ProgressBar::new(pending.len() as u64);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} runs  {per_sec}  elapsed {elapsed_precise}  left {eta_precise}",
+            )
+            .expect("valid template"),
+        );
+        bar
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    // Group by everything but the frame: one renderer per group, frames in parallel.
+    let mut groups: BTreeMap<(String, String, String), Vec<&RunSpec>> = BTreeMap::new();
+    let mut order = Vec::new();
+    for run in &pending {
+        let g = run.group();
+        if !groups.contains_key(&g) {
+            order.push(g.clone());
+        }
+        groups.entry(g).or_default().push(run);
+    }
+    let store = Mutex::new(store);
+    let name = &expansion.experiment.name;
+    for g in order {
+        let runs = &groups[&g];
+        let volume = &expansion.volumes[&runs[0].dataset];
+        let (renderer, tf_name) = renderer_for(runs[0], volume)?;
+        runs.par_iter().try_for_each(|run| -> Result<()> {
+            let t = Instant::now();
+            let line = run_frame(run, &renderer, &tf_name, name, volume)?;
+            let wall = t.elapsed().as_secs_f64();
+            store
+                .lock()
+                .map_err(|_| Error::Invalid("results writer poisoned".into()))?
+                .append(&run.key, &line, wall)?;
+            bar.inc(1);
+            Ok(())
+        })?;
+    }
+    bar.finish_and_clear();
+    summary.ran = pending.len();
+    summary.wall_seconds = start.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// A rough time estimate for a dry run, in seconds on `threads` cores: every ray of a frame
+/// takes at most the volume's diagonal in samples (none mode); leaping and ERT runs are
+/// counted at a third of that. Rates: step model 60 M steps/s, cycle model 4 M cycles/s per
+/// core with ~1.2 cycles per step (docs/performance.md).
+pub fn estimate_seconds(expansion: &Expansion, runs: &[&RunSpec], threads: usize) -> f64 {
+    let mut total = 0.0;
+    for run in runs {
+        let dims = expansion.volumes[&run.dataset].dims;
+        let largest = *dims.iter().max().unwrap_or(&1) as f64;
+        let mean_path = largest * 0.8;
+        let samples = run.size.0 as f64 * run.size.1 as f64 * mean_path * 0.6;
+        let factor = if run.mode.subcube > 0 || run.mode.ert {
+            1.0 / 3.0
+        } else {
+            1.0
+        };
+        total += samples * factor
+            / match run.model {
+                Model::Step => 60e6,
+                Model::Cycle => 4e6 / 1.2,
+            };
+    }
+    total / threads.max(1) as f64
+}
+
+/// Merges the results of several sweep folders (shards) into `out`: duplicates by key must
+/// agree; the merged file is sorted by key, so any split of the same runs merges to the same
+/// bytes.
+pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
+    let mut lines: BTreeMap<String, String> = BTreeMap::new();
+    for dir in inputs {
+        let path = dir.join(store::RESULTS);
+        for (line, text) in store::read_lines(&path)? {
+            let key = line
+                .get("key")
+                .and_then(Value::as_str)
+                .ok_or_else(|| Error::format(&path, "a result line without a key"))?
+                .to_string();
+            match lines.get(&key) {
+                Some(seen) if *seen != text => {
+                    return Err(Error::format(
+                        &path,
+                        format!("run {key} differs from the same run in another input"),
+                    ))
+                }
+                _ => {
+                    lines.insert(key, text);
+                }
+            }
+        }
+    }
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    crate::output::write_atomically(&out.join(store::RESULTS), |w| {
+        use std::io::Write;
+        for text in lines.values() {
+            w.write_all(text.as_bytes())?;
+            w.write_all(b"\n")?;
+        }
+        Ok(())
+    })?;
+    if let Some(first) = inputs.first() {
+        let resolved = first.join(store::RESOLVED);
+        if resolved.exists() && out.join(store::RESOLVED) != resolved {
+            let text = std::fs::read(&resolved).map_err(|e| Error::io(&resolved, e))?;
+            crate::output::write_atomically(&out.join(store::RESOLVED), |w| {
+                use std::io::Write;
+                w.write_all(&text)
+            })?;
+        }
+    }
+    Ok(lines.len())
+}

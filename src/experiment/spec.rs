@@ -1,0 +1,565 @@
+//! Experiment files (`configs/experiments/*.toml`) and their expansion into runs. Everything
+//! is checked before the first run: unknown field paths, empty axes, values out of range,
+//! unknown modes and datasets that are not there, each error naming the axis and the value.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::camera::{parse_image_size, Projection};
+use crate::config::{self, HardwareConfig};
+use crate::error::{Error, Result};
+use crate::occupancy::SUBCUBE_SIZES;
+use crate::volume::{dataset, Volume};
+
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExperimentFile {
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    /// Base hardware configuration file (default: the embedded vizard2.toml).
+    pub config: Option<PathBuf>,
+    /// Dataset names (`fuel`, `aneurism`, `phantom:metaballs:64`, ...).
+    pub datasets: Vec<String>,
+    /// Classification axis: `zero` ('0' transfer function and map) and/or `class`.
+    #[serde(default = "default_tf")]
+    pub tf: Vec<String>,
+    /// Acceleration modes: `none`, or `+`-joined `ert`, `leapN`, `hier`.
+    pub modes: Vec<String>,
+    /// `step` (functional model, counts steps) and/or `cycle` (cycle-accurate with SDRAM).
+    pub models: Vec<String>,
+    /// Leaping points whose map exceeds occupancy.sram_bits: run them with the SRAM raised to
+    /// the next power of two that fits (marked in the results), or leave them out.
+    #[serde(default)]
+    pub raise_sram: bool,
+    pub frames: Frames,
+    /// Hardware fields by dotted path, each with its list of values.
+    #[serde(default)]
+    pub axes: toml::Table,
+    /// Groups of axes that advance together instead of spanning a product.
+    #[serde(default)]
+    pub zip: Vec<Vec<String>>,
+    /// Runs matching every key of one of these tables are left out.
+    #[serde(default)]
+    pub exclude: Vec<toml::Table>,
+}
+
+fn default_tf() -> Vec<String> {
+    vec!["zero".into(), "class".into()]
+}
+
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Frames {
+    /// Frames of the full orbit about the vertical axis (72 in the published protocol).
+    pub orbit: u32,
+    /// Frame indices to run (default: all).
+    pub select: Option<Vec<u32>>,
+    /// Or every n-th frame.
+    pub every: Option<u32>,
+    #[serde(default = "default_size")]
+    pub size: String,
+    #[serde(default = "default_projection")]
+    pub projection: String,
+}
+
+fn default_size() -> String {
+    "256x256".into()
+}
+fn default_projection() -> String {
+    "ortho".into()
+}
+
+/// An acceleration mode.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+pub struct Mode {
+    pub ert: bool,
+    /// 0 = no leaping.
+    pub subcube: usize,
+    pub hierarchy: bool,
+}
+
+impl Mode {
+    pub fn parse(text: &str) -> std::result::Result<Mode, String> {
+        let mut mode = Mode {
+            ert: false,
+            subcube: 0,
+            hierarchy: false,
+        };
+        if text == "none" {
+            return Ok(mode);
+        }
+        for token in text.split('+') {
+            match token {
+                "ert" => mode.ert = true,
+                "hier" => mode.hierarchy = true,
+                t if t.starts_with("leap") => {
+                    let n: usize = t[4..]
+                        .parse()
+                        .map_err(|_| format!("`{t}`: expected leapN, N a sub-cube edge"))?;
+                    if !SUBCUBE_SIZES.contains(&n) {
+                        return Err(format!(
+                            "`{t}`: sub-cube edge must be one of {SUBCUBE_SIZES:?}"
+                        ));
+                    }
+                    mode.subcube = n;
+                }
+                t => {
+                    return Err(format!(
+                        "unknown token `{t}`; modes are `none` or `+`-joined `ert`, `leapN`, `hier`"
+                    ))
+                }
+            }
+        }
+        if mode.hierarchy && mode.subcube == 0 {
+            return Err("`hier` needs `leapN`".into());
+        }
+        Ok(mode)
+    }
+
+    /// Canonical text: `none`, `ert`, `ert+leap8`, `ert+leap8+hier`.
+    pub fn name(&self) -> String {
+        let mut parts = Vec::new();
+        if self.ert {
+            parts.push("ert".to_string());
+        }
+        if self.subcube > 0 {
+            parts.push(format!("leap{}", self.subcube));
+        }
+        if self.hierarchy {
+            parts.push("hier".into());
+        }
+        if parts.is_empty() {
+            "none".into()
+        } else {
+            parts.join("+")
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Model {
+    Step,
+    Cycle,
+}
+
+impl Model {
+    pub fn name(self) -> &'static str {
+        match self {
+            Model::Step => "step",
+            Model::Cycle => "cycle",
+        }
+    }
+}
+
+/// Datasets that stand in for unavailable published ones (brief, section 6).
+pub fn dataset_label(name: &str) -> (String, bool) {
+    match name {
+        "foot-lossy" => ("foot (lossy stand-in)".into(), true),
+        "tooth_103x94x161" => ("skull (stand-in: tooth)".into(), true),
+        "aneurism" => ("vessel (aneurism)".into(), false),
+        other => (other.to_string(), false),
+    }
+}
+
+/// One frame-run, fully resolved.
+#[derive(Clone, Debug, Serialize)]
+pub struct RunSpec {
+    pub key: String,
+    /// Position in the experiment's expansion (sharding uses it).
+    pub index: usize,
+    pub dataset: String,
+    pub tf: String,
+    pub mode: Mode,
+    pub model: Model,
+    pub frame: u32,
+    pub view: String,
+    pub size: (u32, u32),
+    pub projection: Projection,
+    /// Swept hardware fields: path → value.
+    pub axes: BTreeMap<String, serde_json::Value>,
+    pub fits_default_sram: bool,
+    pub config: HardwareConfig,
+}
+
+impl RunSpec {
+    /// Runs that differ only in the frame share a renderer (same dataset, TF and config).
+    pub fn group(&self) -> (String, String, String) {
+        (
+            self.dataset.clone(),
+            self.tf.clone(),
+            serde_json::to_string(&self.config).unwrap_or_default(),
+        )
+    }
+}
+
+/// A point left out of the expansion, and why.
+#[derive(Clone, Debug, Serialize)]
+pub struct Skipped {
+    pub dataset: String,
+    pub mode: String,
+    pub reason: String,
+}
+
+pub struct Expansion {
+    pub experiment: ExperimentFile,
+    pub source: String,
+    pub runs: Vec<RunSpec>,
+    pub skipped: Vec<Skipped>,
+    pub volumes: BTreeMap<String, Arc<Volume>>,
+}
+
+/// Reads and expands an experiment file.
+pub fn load(path: &Path, data_dir: Option<&Path>) -> Result<Expansion> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    expand(&text, &path.display().to_string(), data_dir)
+}
+
+fn toml_to_json(value: &toml::Value) -> serde_json::Value {
+    serde_json::to_value(value).unwrap_or(serde_json::Value::Null)
+}
+
+/// SRAM bits of a sub-cube map of a volume (as `OccupancyMap::storage_bits`).
+fn map_bits(dims: [usize; 3], subcube: usize, hierarchy: bool) -> u64 {
+    let cells = dims.map(|d| d.div_ceil(subcube));
+    if hierarchy {
+        8 * cells.iter().map(|c| c.div_ceil(2) as u64).product::<u64>()
+    } else {
+        cells.iter().map(|&c| c as u64).product()
+    }
+}
+
+pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expansion> {
+    let experiment: ExperimentFile = toml::from_str(text)
+        .map_err(|e| Error::format(source, format!("invalid experiment: {e}")))?;
+    let bad = |field: &str, message: String| Error::config(source, field, message);
+    for (field, list) in [
+        ("datasets", &experiment.datasets),
+        ("tf", &experiment.tf),
+        ("modes", &experiment.modes),
+        ("models", &experiment.models),
+    ] {
+        if list.is_empty() {
+            return Err(bad(field, "is empty; give at least one value".into()));
+        }
+    }
+    let base_text = match &experiment.config {
+        Some(p) => std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?,
+        None => config::DEFAULT_TOML.to_string(),
+    };
+    let base_name = experiment
+        .config
+        .as_ref()
+        .map(|p| p.display().to_string())
+        .unwrap_or_else(|| config::DEFAULT_NAME.to_string());
+    HardwareConfig::from_toml_str(&base_text, &base_name, &[])?;
+
+    let modes = experiment
+        .modes
+        .iter()
+        .map(|m| Mode::parse(m).map_err(|e| bad("modes", format!("`{m}`: {e}"))))
+        .collect::<Result<Vec<_>>>()?;
+    let models = experiment
+        .models
+        .iter()
+        .map(|m| match m.as_str() {
+            "step" => Ok(Model::Step),
+            "cycle" => Ok(Model::Cycle),
+            other => Err(bad(
+                "models",
+                format!("`{other}`: expected `step` or `cycle`"),
+            )),
+        })
+        .collect::<Result<Vec<_>>>()?;
+    for tf in &experiment.tf {
+        if tf != "zero" && tf != "class" {
+            return Err(bad("tf", format!("`{tf}`: expected `zero` or `class`")));
+        }
+    }
+    let frames = &experiment.frames;
+    if frames.orbit == 0 || frames.orbit > 3600 {
+        return Err(bad(
+            "frames.orbit",
+            format!("{} is out of range; allowed 1..=3600", frames.orbit),
+        ));
+    }
+    let frame_list: Vec<u32> = match (&frames.select, frames.every) {
+        (Some(_), Some(_)) => {
+            return Err(bad("frames", "give `select` or `every`, not both".into()))
+        }
+        (Some(list), None) => {
+            if list.is_empty() {
+                return Err(bad("frames.select", "is empty".into()));
+            }
+            if let Some(f) = list.iter().find(|&&f| f >= frames.orbit) {
+                return Err(bad(
+                    "frames.select",
+                    format!("frame {f} is out of range; allowed 0..{}", frames.orbit),
+                ));
+            }
+            list.clone()
+        }
+        (None, Some(0)) => {
+            return Err(bad(
+                "frames.every",
+                "0 is out of range; allowed >= 1".into(),
+            ))
+        }
+        (None, Some(n)) => (0..frames.orbit).step_by(n as usize).collect(),
+        (None, None) => (0..frames.orbit).collect(),
+    };
+    let size = parse_image_size(&frames.size).map_err(|e| bad("frames.size", e.to_string()))?;
+    let projection = match frames.projection.as_str() {
+        "ortho" => Projection::Ortho,
+        "persp" => Projection::Persp,
+        other => {
+            return Err(bad(
+                "frames.projection",
+                format!("`{other}`: expected `ortho` or `persp`"),
+            ))
+        }
+    };
+
+    // Axes: each a non-empty list; zipped groups advance together.
+    let mut axes: Vec<(String, Vec<toml::Value>)> = Vec::new();
+    for (path, values) in &experiment.axes {
+        let field = format!("axes.\"{path}\"");
+        let list = values
+            .as_array()
+            .ok_or_else(|| bad(&field, "expected a list of values".into()))?;
+        if list.is_empty() {
+            return Err(bad(&field, "is empty; give at least one value".into()));
+        }
+        axes.push((path.clone(), list.clone()));
+    }
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    let mut zipped = vec![false; axes.len()];
+    for group in &experiment.zip {
+        let mut members = Vec::new();
+        for path in group {
+            let i = axes
+                .iter()
+                .position(|(p, _)| p == path)
+                .ok_or_else(|| bad("zip", format!("`{path}` is not an axis")))?;
+            if zipped[i] {
+                return Err(bad("zip", format!("`{path}` is in two zip groups")));
+            }
+            zipped[i] = true;
+            members.push(i);
+        }
+        let len = axes[members[0]].1.len();
+        if let Some(&m) = members.iter().find(|&&m| axes[m].1.len() != len) {
+            return Err(bad(
+                "zip",
+                format!(
+                    "`{}` has {} values, `{}` has {len}; zipped axes need equal lengths",
+                    axes[m].0,
+                    axes[m].1.len(),
+                    axes[members[0]].0
+                ),
+            ));
+        }
+        groups.push(members);
+    }
+    for (i, z) in zipped.iter().enumerate() {
+        if !z {
+            groups.push(vec![i]);
+        }
+    }
+    groups.sort();
+    // Cartesian product over groups.
+    let mut combos: Vec<Vec<(String, toml::Value)>> = vec![Vec::new()];
+    for group in &groups {
+        let len = axes[group[0]].1.len();
+        let mut next = Vec::with_capacity(combos.len() * len);
+        for combo in &combos {
+            for j in 0..len {
+                let mut c = combo.clone();
+                for &m in group {
+                    c.push((axes[m].0.clone(), axes[m].1[j].clone()));
+                }
+                next.push(c);
+            }
+        }
+        combos = next;
+    }
+    // Every axis value alone must be a valid setting of its field.
+    for (path, values) in &axes {
+        for value in values {
+            HardwareConfig::from_toml_str(&base_text, &base_name, &[format!("{path}={value}")])
+                .map_err(|e| bad(&format!("axes.\"{path}\""), format!("value {value}: {e}")))?;
+        }
+    }
+
+    // Datasets: loaded once, here, so a missing one fails before any run.
+    let mut volumes = BTreeMap::new();
+    for name in &experiment.datasets {
+        if !volumes.contains_key(name) {
+            let volume = dataset::load(name, data_dir)
+                .map_err(|e| bad("datasets", format!("`{name}`: {e}")))?;
+            volumes.insert(name.clone(), Arc::new(volume));
+        }
+    }
+
+    let view_of = |frame: u32| format!("orbit:{frame}/{}", frames.orbit);
+    let mut runs = Vec::new();
+    let mut skipped = Vec::new();
+    let mut configs: BTreeMap<String, HardwareConfig> = BTreeMap::new();
+    for name in &experiment.datasets {
+        let dims = volumes[name].dims;
+        for tf in &experiment.tf {
+            for mode in &modes {
+                for &model in &models {
+                    for combo in &combos {
+                        let mut overrides: Vec<String> =
+                            combo.iter().map(|(p, v)| format!("{p}={v}")).collect();
+                        overrides.push(format!("compositing.ert={}", mode.ert));
+                        overrides.push(format!("occupancy.subcube={}", mode.subcube));
+                        overrides.push(format!("occupancy.hierarchy={}", mode.hierarchy));
+                        overrides.push(format!("occupancy.kind=\"{tf}\""));
+                        let id = overrides.join(" ");
+                        let mut config = match configs.get(&id) {
+                            Some(c) => c.clone(),
+                            None => {
+                                let c = HardwareConfig::from_toml_str(
+                                    &base_text, &base_name, &overrides,
+                                )
+                                .map_err(|e| {
+                                    bad(
+                                        "axes",
+                                        format!(
+                                            "the combination {}: {e}",
+                                            combo
+                                                .iter()
+                                                .map(|(p, v)| format!("{p}={v}"))
+                                                .collect::<Vec<_>>()
+                                                .join(", ")
+                                        ),
+                                    )
+                                })?;
+                                configs.insert(id, c.clone());
+                                c
+                            }
+                        };
+                        let mut fits = true;
+                        if mode.subcube > 0 {
+                            if mode.subcube > *dims.iter().max().unwrap_or(&0) {
+                                skipped.push(Skipped {
+                                    dataset: name.clone(),
+                                    mode: mode.name(),
+                                    reason: format!("sub-cube larger than the volume {dims:?}"),
+                                });
+                                continue;
+                            }
+                            let bits = map_bits(dims, mode.subcube, mode.hierarchy);
+                            if bits > config.occupancy.sram_bits {
+                                if !experiment.raise_sram {
+                                    skipped.push(Skipped {
+                                        dataset: name.clone(),
+                                        mode: mode.name(),
+                                        reason: format!(
+                                            "map needs {bits} bits > occupancy.sram_bits {}",
+                                            config.occupancy.sram_bits
+                                        ),
+                                    });
+                                    continue;
+                                }
+                                fits = false;
+                                config.occupancy.sram_bits = bits.next_power_of_two();
+                            }
+                        }
+                        let axes_json: BTreeMap<String, serde_json::Value> = combo
+                            .iter()
+                            .map(|(p, v)| (p.clone(), toml_to_json(v)))
+                            .collect();
+                        let excluded = experiment.exclude.iter().any(|rule| {
+                            rule.iter().all(|(k, v)| match k.as_str() {
+                                "dataset" => v.as_str() == Some(name),
+                                "tf" => v.as_str() == Some(tf),
+                                "mode" => v
+                                    .as_str()
+                                    .and_then(|m| Mode::parse(m).ok())
+                                    .is_some_and(|m| m == *mode),
+                                "model" => v.as_str() == Some(model.name()),
+                                path => axes_json.get(path) == Some(&toml_to_json(v)),
+                            })
+                        });
+                        if excluded {
+                            continue;
+                        }
+                        for &frame in &frame_list {
+                            let view = view_of(frame);
+                            let key = run_key(name, tf, model, &view, size, projection, &config);
+                            runs.push(RunSpec {
+                                key,
+                                index: runs.len(),
+                                dataset: name.clone(),
+                                tf: tf.clone(),
+                                mode: *mode,
+                                model,
+                                frame,
+                                view,
+                                size,
+                                projection,
+                                axes: axes_json.clone(),
+                                fits_default_sram: fits,
+                                config: config.clone(),
+                            });
+                        }
+                    }
+                }
+            }
+        }
+    }
+    for rule in &experiment.exclude {
+        for k in rule.keys() {
+            let known = ["dataset", "tf", "mode", "model"].contains(&k.as_str())
+                || axes.iter().any(|(p, _)| p == k);
+            if !known {
+                return Err(bad(
+                    "exclude",
+                    format!("`{k}` is neither dataset, tf, mode, model nor an axis"),
+                ));
+            }
+        }
+    }
+    if runs.is_empty() {
+        return Err(bad("exclude", "every run is excluded or skipped".into()));
+    }
+    Ok(Expansion {
+        experiment,
+        source: source.to_string(),
+        runs,
+        skipped,
+        volumes,
+    })
+}
+
+/// The run's identity: a hash of everything that decides its result (not the experiment's
+/// name, so the same run in two experiments has the same key).
+pub fn run_key(
+    dataset: &str,
+    tf: &str,
+    model: Model,
+    view: &str,
+    size: (u32, u32),
+    projection: Projection,
+    config: &HardwareConfig,
+) -> String {
+    let canonical = serde_json::json!({
+        "dataset": dataset,
+        "tf": tf,
+        "model": model,
+        "view": view,
+        "size": [size.0, size.1],
+        "projection": projection,
+        "config": config,
+    });
+    let digest = Sha256::digest(canonical.to_string().as_bytes());
+    digest[..8].iter().map(|b| format!("{b:02x}")).collect()
+}

@@ -1,0 +1,178 @@
+//! The results store of a sweep folder. `results.jsonl` holds one JSON object per finished
+//! run, appended with one `write` per line and synced, so a killed sweep loses nothing it
+//! finished. On reopening, a torn last line (no newline, or not JSON: the kill hit the write)
+//! is cut off and its run is done again; a malformed line anywhere else is an error.
+
+use std::collections::HashSet;
+use std::fs::{File, OpenOptions};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use serde_json::Value;
+
+use super::spec::Expansion;
+use super::Shard;
+use crate::error::{Error, Result};
+
+pub const RESULTS: &str = "results.jsonl";
+pub const TIMING: &str = "timing.jsonl";
+pub const RESOLVED: &str = "experiment.resolved.json";
+
+/// The complete lines of a results file (missing file = none), with their text. A torn last
+/// line is left out.
+pub fn read_lines(path: &Path) -> Result<Vec<(Value, String)>> {
+    Ok(scan(path)?.0)
+}
+
+/// A parsed result line and its text.
+type Line = (Value, String);
+
+/// Lines, the byte length of the complete part of the file, and whether a torn last line
+/// follows it.
+fn scan(path: &Path) -> Result<(Vec<Line>, u64, bool)> {
+    let bytes = match std::fs::read(path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok((Vec::new(), 0, false)),
+        Err(e) => return Err(Error::io(path, e)),
+    };
+    let mut lines = Vec::new();
+    let mut offset = 0usize;
+    let mut torn = false;
+    let mut number = 0;
+    while offset < bytes.len() {
+        number += 1;
+        let end = bytes[offset..].iter().position(|&b| b == b'\n');
+        let (line, next) = match end {
+            Some(e) => (&bytes[offset..offset + e], offset + e + 1),
+            None => (&bytes[offset..], bytes.len()),
+        };
+        let parsed = std::str::from_utf8(line)
+            .ok()
+            .and_then(|t| serde_json::from_str::<Value>(t).ok().map(|v| (v, t)))
+            .filter(|(v, _)| v.get("key").and_then(Value::as_str).is_some());
+        match (parsed, end) {
+            (Some((v, t)), Some(_)) => lines.push((v, t.to_string())),
+            // The last line, cut short by a kill: redo its run.
+            (_, None) => {
+                torn = true;
+                break;
+            }
+            (None, Some(_)) if next == bytes.len() => {
+                torn = true;
+                break;
+            }
+            (None, Some(_)) => {
+                return Err(Error::format(
+                    path,
+                    format!("line {number} is not a result line (corrupt file?)"),
+                ))
+            }
+        }
+        offset = next;
+    }
+    Ok((lines, offset as u64, torn))
+}
+
+pub struct ResultStore {
+    dir: PathBuf,
+    keys: HashSet<String>,
+    results: File,
+    timing: File,
+    pub torn_lines_dropped: usize,
+}
+
+impl ResultStore {
+    pub fn open(dir: &Path) -> Result<ResultStore> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        let path = dir.join(RESULTS);
+        let (lines, complete, torn) = scan(&path)?;
+        if torn {
+            // Cut the torn tail so the next append starts on a fresh line.
+            let file = OpenOptions::new()
+                .write(true)
+                .open(&path)
+                .map_err(|e| Error::io(&path, e))?;
+            file.set_len(complete).map_err(|e| Error::io(&path, e))?;
+            eprintln!(
+                "{}: dropped a torn last line (interrupted write); its run is done again",
+                path.display()
+            );
+        }
+        let keys = lines
+            .iter()
+            .filter_map(|(v, _)| v.get("key").and_then(Value::as_str).map(str::to_string))
+            .collect();
+        let append = |p: &Path| {
+            OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(p)
+                .map_err(|e| Error::io(p, e))
+        };
+        Ok(ResultStore {
+            dir: dir.to_path_buf(),
+            keys,
+            results: append(&path)?,
+            timing: append(&dir.join(TIMING))?,
+            torn_lines_dropped: torn as usize,
+        })
+    }
+
+    pub fn has(&self, key: &str) -> bool {
+        self.keys.contains(key)
+    }
+
+    pub fn len(&self) -> usize {
+        self.keys.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.keys.is_empty()
+    }
+
+    /// Appends a finished run: the whole line in one write, then synced.
+    pub fn append(&mut self, key: &str, line: &Value, wall_seconds: f64) -> Result<()> {
+        let mut text = line.to_string();
+        text.push('\n');
+        let path = self.dir.join(RESULTS);
+        self.results
+            .write_all(text.as_bytes())
+            .and_then(|_| self.results.sync_data())
+            .map_err(|e| Error::io(&path, e))?;
+        let timing = format!(
+            "{}\n",
+            serde_json::json!({ "key": key, "wall_seconds": wall_seconds })
+        );
+        self.timing
+            .write_all(timing.as_bytes())
+            .map_err(|e| Error::io(self.dir.join(TIMING), e))?;
+        self.keys.insert(key.to_string());
+        Ok(())
+    }
+
+    /// The experiment as resolved (its file, base configuration and every run's parameters),
+    /// written before any run.
+    pub fn write_resolved(&self, expansion: &Expansion, shard: Option<Shard>) -> Result<()> {
+        let runs: Vec<Value> = expansion
+            .runs
+            .iter()
+            .map(|r| {
+                serde_json::json!({
+                    "key": r.key, "dataset": r.dataset, "tf": r.tf, "mode": r.mode.name(),
+                    "model": r.model, "frame": r.frame, "axes": r.axes,
+                    "fits_default_sram": r.fits_default_sram,
+                })
+            })
+            .collect();
+        let base = expansion.runs.first().map(|r| &r.config);
+        let resolved = serde_json::json!({
+            "experiment": expansion.experiment,
+            "source": expansion.source,
+            "shard": shard,
+            "first_run_config": base,
+            "skipped": expansion.skipped,
+            "runs": runs,
+        });
+        crate::output::write_json(&self.dir.join(RESOLVED), &resolved)
+    }
+}

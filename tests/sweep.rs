@@ -1,0 +1,275 @@
+//! Sweeps: expansion, validation before any run, resume after SIGKILL, torn lines, shards and
+//! merge, tables. Small phantoms and images keep the file fast.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use vizsim::experiment::spec::{expand, Model};
+
+const BIN: &str = env!("CARGO_BIN_EXE_vizsim");
+
+const TINY: &str = r#"
+name = "ci-tiny"
+datasets = ["phantom:metaballs:32", "phantom:shells:24"]
+tf = ["zero", "class"]
+modes = ["none", "ert+leap4", "ert+leap8+hier"]
+models = ["step", "cycle"]
+[frames]
+orbit = 72
+select = [0, 5, 11]
+size = "24x24"
+[axes]
+"ray_queue.rays" = [8, 16]
+"#;
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("vizsim-sweep-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn write_experiment(dir: &Path, text: &str) -> PathBuf {
+    let path = dir.join("exp.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn vizsim(args: &[&str]) -> std::process::Output {
+    Command::new(BIN).args(args).output().unwrap()
+}
+
+fn sorted_lines(path: &Path) -> Vec<String> {
+    let mut lines: Vec<String> = std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(str::to_string)
+        .collect();
+    lines.sort();
+    lines
+}
+
+#[test]
+fn expansion_is_the_product_with_zip_and_exclusions() {
+    let e = expand(TINY, "tiny", None).unwrap();
+    // 2 datasets x 2 tf x 3 modes x 2 models x 2 rays x 3 frames
+    assert_eq!(e.runs.len(), 2 * 2 * 3 * 2 * 2 * 3);
+    let keys: std::collections::HashSet<_> = e.runs.iter().map(|r| r.key.clone()).collect();
+    assert_eq!(keys.len(), e.runs.len(), "keys are distinct");
+    assert_eq!(
+        expand(TINY, "again", None).unwrap().runs[7].key,
+        e.runs[7].key
+    );
+    assert!(e
+        .runs
+        .iter()
+        .all(|r| r.config.ray_queue.rays == 8 || r.config.ray_queue.rays == 16));
+
+    let zipped = TINY.replace(
+        "\"ray_queue.rays\" = [8, 16]",
+        "\"ray_queue.rays\" = [8, 16]\n\"skip.latency\" = [4, 8]",
+    ) + "";
+    let product = expand(&zipped, "z", None).unwrap().runs.len();
+    assert_eq!(product, 2 * 2 * 3 * 2 * 4 * 3);
+    let zipped = zipped.replace(
+        "[frames]",
+        "zip = [[\"ray_queue.rays\", \"skip.latency\"]]\n[frames]",
+    );
+    let e = expand(&zipped, "z", None).unwrap();
+    assert_eq!(e.runs.len(), 2 * 2 * 3 * 2 * 2 * 3);
+    assert!(e.runs.iter().all(
+        |r| (r.config.ray_queue.rays, r.config.skip.latency) == (8, 4)
+            || (r.config.ray_queue.rays, r.config.skip.latency) == (16, 8)
+    ));
+
+    let excluded = format!(
+        "{TINY}\n[[exclude]]\nmodel = \"cycle\"\n\"ray_queue.rays\" = 8\n[[exclude]]\ndataset = \"phantom:shells:24\"\nmode = \"none\"\n"
+    );
+    let e = expand(&excluded, "x", None).unwrap();
+    // 36 cycle runs with 8 rays, 24 shells none runs, 6 of them both.
+    assert_eq!(e.runs.len(), 144 - 36 - 24 + 6);
+    assert!(!e
+        .runs
+        .iter()
+        .any(|r| r.model == Model::Cycle && r.config.ray_queue.rays == 8));
+}
+
+#[test]
+fn bad_experiments_fail_before_any_run_naming_axis_and_value() {
+    let dir = temp_dir("bad");
+    for (edit, expect) in [
+        (
+            ("\"ray_queue.rays\" = [8, 16]", "\"ray_queue.raze\" = [8]"),
+            "raze",
+        ),
+        (
+            ("\"ray_queue.rays\" = [8, 16]", "\"ray_queue.rays\" = []"),
+            "ray_queue.rays",
+        ),
+        (
+            (
+                "\"ray_queue.rays\" = [8, 16]",
+                "\"ray_queue.rays\" = [8, 0]",
+            ),
+            "value 0",
+        ),
+        (("phantom:shells:24", "no-such-dataset"), "no-such-dataset"),
+        (("ert+leap4", "ert+leap5"), "leap5"),
+        (("select = [0, 5, 11]", "select = [0, 72]"), "frame 72"),
+    ] {
+        let exp = write_experiment(&dir, &TINY.replace(edit.0, edit.1));
+        let out = dir.join("out");
+        let result = vizsim(&[
+            "sweep",
+            exp.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert!(!result.status.success(), "{edit:?} should fail");
+        assert!(stderr.contains(expect), "{edit:?}: {stderr}");
+        assert!(!out.join("results.jsonl").exists(), "{edit:?}: nothing ran");
+    }
+}
+
+#[test]
+fn a_killed_sweep_resumes_to_the_same_results() {
+    let dir = temp_dir("kill");
+    let exp = write_experiment(&dir, TINY);
+    let (killed, whole) = (dir.join("killed"), dir.join("whole"));
+    let args = |out: &Path| {
+        vec![
+            "--threads".to_string(),
+            "2".into(),
+            "sweep".into(),
+            exp.display().to_string(),
+            "--out".into(),
+            out.display().to_string(),
+            "--quiet".into(),
+        ]
+    };
+    let mut child = Command::new(BIN)
+        .args(args(&killed))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let results = killed.join("results.jsonl");
+    let start = Instant::now();
+    loop {
+        let n = std::fs::read_to_string(&results)
+            .map(|t| t.lines().count())
+            .unwrap_or(0);
+        if n >= 3 || start.elapsed() > Duration::from_secs(60) {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+    let partial = std::fs::read_to_string(&results).unwrap().lines().count();
+    assert!(
+        (3..144).contains(&partial),
+        "killed in the middle: {partial} of 144 results written"
+    );
+    // Simulate a kill in the middle of a write too: half a line at the end.
+    let mut text = std::fs::read_to_string(&results).unwrap();
+    text.push_str("{\"key\":\"deadbeef\",\"dataset\":\"phan");
+    std::fs::write(&results, text).unwrap();
+
+    let resumed = Command::new(BIN).args(args(&killed)).output().unwrap();
+    assert!(resumed.status.success());
+    assert!(String::from_utf8_lossy(&resumed.stderr).contains("torn"));
+    let stdout = String::from_utf8_lossy(&resumed.stdout);
+    assert!(stdout.contains("already done"), "{stdout}");
+    let uninterrupted = Command::new(BIN).args(args(&whole)).output().unwrap();
+    assert!(uninterrupted.status.success());
+    let (a, b) = (
+        sorted_lines(&results),
+        sorted_lines(&whole.join("results.jsonl")),
+    );
+    assert_eq!(a.len(), 144);
+    assert!(a == b, "resumed results equal the uninterrupted run");
+
+    // Running a finished sweep again runs nothing.
+    let again = Command::new(BIN).args(args(&whole)).output().unwrap();
+    assert!(String::from_utf8_lossy(&again.stdout).contains("ran 0 runs"));
+    assert_eq!(sorted_lines(&whole.join("results.jsonl")).len(), 144);
+}
+
+#[test]
+fn shards_merge_to_the_unsharded_sweep() {
+    let dir = temp_dir("shards");
+    let exp = write_experiment(
+        &dir,
+        &TINY.replace("models = [\"step\", \"cycle\"]", "models = [\"step\"]"),
+    );
+    let exp = exp.to_str().unwrap();
+    let whole = dir.join("whole");
+    assert!(vizsim(&["sweep", exp, "--out", whole.to_str().unwrap()])
+        .status
+        .success());
+    let mut shard_dirs = Vec::new();
+    for i in 0..3 {
+        let d = dir.join(format!("shard{i}"));
+        let shard = format!("{i}/3");
+        let r = vizsim(&[
+            "sweep",
+            exp,
+            "--out",
+            d.to_str().unwrap(),
+            "--shard",
+            &shard,
+        ]);
+        assert!(r.status.success());
+        let n = sorted_lines(&d.join("results.jsonl")).len();
+        assert_eq!(n, 24, "shard {i} has a third of 72 runs");
+        shard_dirs.push(d.display().to_string());
+    }
+    let merged = dir.join("merged");
+    let mut args = vec!["merge".to_string()];
+    args.extend(shard_dirs);
+    args.extend(["--out".into(), merged.display().to_string()]);
+    assert!(Command::new(BIN)
+        .args(&args)
+        .output()
+        .unwrap()
+        .status
+        .success());
+    let canonical = dir.join("canonical");
+    assert!(vizsim(&[
+        "merge",
+        whole.to_str().unwrap(),
+        "--out",
+        canonical.to_str().unwrap()
+    ])
+    .status
+    .success());
+    assert_eq!(
+        std::fs::read(merged.join("results.jsonl")).unwrap(),
+        std::fs::read(canonical.join("results.jsonl")).unwrap()
+    );
+    assert!(!vizsim(&["sweep", exp, "--out", "x", "--shard", "3/3"])
+        .status
+        .success());
+
+    // The table of the merged results: rows dataset x tf, columns the modes.
+    let t = vizsim(&[
+        "table",
+        merged.to_str().unwrap(),
+        "--rows",
+        "dataset,tf,ray_queue.rays",
+    ]);
+    assert!(t.status.success(), "{}", String::from_utf8_lossy(&t.stderr));
+    let md = std::fs::read_to_string(merged.join("tables/step-fps.md")).unwrap();
+    assert!(md.contains("| none | 4³ | 8³+h |"), "{md}");
+    assert_eq!(
+        md.lines().filter(|l| l.starts_with("| phantom")).count(),
+        2 * 2 * 2
+    );
+    // A swept field that is neither a row nor a column would be averaged away: an error.
+    let t = vizsim(&["table", merged.to_str().unwrap()]);
+    assert!(!t.status.success());
+    assert!(String::from_utf8_lossy(&t.stderr).contains("ray_queue.rays"));
+}
