@@ -69,7 +69,8 @@ fn series_means(
 pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
     let mut written = 0;
     let models: BTreeSet<String> = lines.iter().map(|l| text(l, "model")).collect();
-    let datasets: BTreeSet<String> = lines.iter().map(|l| text(l, "dataset")).collect();
+    // Grouped and named by the dataset's name; titled with its label (stand-ins marked).
+    let datasets: BTreeSet<String> = lines.iter().map(|l| raw_dataset(l)).collect();
     let tfs: BTreeSet<String> = lines.iter().map(|l| text(l, "tf")).collect();
     let axes: BTreeSet<String> = lines
         .iter()
@@ -92,8 +93,9 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
         for dataset in &datasets {
             let of: Vec<&Value> = lines
                 .iter()
-                .filter(|l| text(l, "model") == *model && text(l, "dataset") == *dataset)
+                .filter(|l| text(l, "model") == *model && raw_dataset(l) == *dataset)
                 .collect();
+            let label = of.first().map(|l| text(l, "dataset")).unwrap_or_default();
             // 1. Per frame, one line per mode (with several frames).
             for tf in &tfs {
                 let these: Vec<&Value> = of
@@ -115,7 +117,7 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                 for s in &mut series {
                     s.name = mode_label(&s.name);
                 }
-                let title = format!("{dataset}, {} ({model} model)", tf_label(tf));
+                let title = format!("{label}, {} ({model} model)", tf_label(tf));
                 LineChart {
                     title: &title,
                     x_label: "frame (5° per frame for a 72-frame orbit)",
@@ -158,7 +160,7 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                     |l| num(l, "subcube").map(f64::log2),
                     |l| Metric::Fps.value(l),
                 );
-                let title = format!("{dataset}: frame rate against sub-cube size ({model} model)");
+                let title = format!("{label}: frame rate against sub-cube size ({model} model)");
                 LineChart {
                     title: &title,
                     x_label: "log2 of the sub-cube edge (2 = 4³, 3 = 8³, 4 = 16³ …)",
@@ -187,7 +189,7 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                     |l| num_axis(l, axis),
                     |l| Metric::Fps.value(l),
                 );
-                let title = format!("{dataset}: frame rate against {axis} ({model} model)");
+                let title = format!("{label}: frame rate against {axis} ({model} model)");
                 LineChart {
                     title: &title,
                     x_label: axis,
@@ -236,6 +238,13 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
         written += 1;
     }
     Ok(written)
+}
+
+fn raw_dataset(line: &Value) -> String {
+    line.get("dataset")
+        .and_then(Value::as_str)
+        .unwrap_or_default()
+        .to_string()
 }
 
 fn num_axis(line: &Value, axis: &str) -> Option<f64> {

@@ -21,7 +21,7 @@ pub struct LineChart<'a> {
     pub log_y: bool,
 }
 
-const PALETTE: [RGBColor; 8] = [
+const PALETTE: [RGBColor; 12] = [
     RGBColor(31, 119, 180),
     RGBColor(255, 127, 14),
     RGBColor(44, 160, 44),
@@ -30,6 +30,10 @@ const PALETTE: [RGBColor; 8] = [
     RGBColor(140, 86, 75),
     RGBColor(227, 119, 194),
     RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
+    RGBColor(0, 0, 0),
+    RGBColor(255, 187, 120),
 ];
 
 impl LineChart<'_> {
@@ -109,8 +113,10 @@ impl LineChart<'_> {
                 .fold(f64::MAX, f64::min)
                 .min(y1.max(1e-9))
                 / 1.3;
+            // log10 values on a linear axis, labelled with the values: plotters' own log axis
+            // labels only whole decades.
             let chart = builder
-                .build_cartesian_2d(x_range, (low..(y1.max(low) * 1.3)).log_scale())
+                .build_cartesian_2d(x_range, low.log10()..(y1.max(low) * 1.3).log10())
                 .map_err(err)?;
             self.draw_lines(chart, true)?;
         } else {
@@ -165,8 +171,9 @@ impl LineChart<'_> {
                 self.y_label.to_string()
             })
             .x_labels(x_ticks)
+            .y_labels(12)
             .x_label_formatter(&x_format)
-            .y_label_formatter(&|y: &f64| si_number(*y))
+            .y_label_formatter(&|y: &f64| si_number(if log { 10f64.powf(*y) } else { *y }))
             .label_style(("sans-serif", 15))
             .draw()
             .map_err(err)?;
@@ -177,6 +184,7 @@ impl LineChart<'_> {
                 .iter()
                 .copied()
                 .filter(|(x, y)| x.is_finite() && y.is_finite() && (!log || *y > 0.0))
+                .map(|(x, y)| (x, if log { y.log10() } else { y }))
                 .collect();
             chart
                 .draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))
