@@ -70,7 +70,7 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
     let mut written = 0;
     let models: BTreeSet<String> = lines.iter().map(|l| text(l, "model")).collect();
     // Grouped and named by the dataset's name; titled with its label (stand-ins marked).
-    let datasets: BTreeSet<String> = lines.iter().map(|l| raw_dataset(l)).collect();
+    let datasets: BTreeSet<String> = lines.iter().map(raw_dataset).collect();
     let tfs: BTreeSet<String> = lines.iter().map(|l| text(l, "tf")).collect();
     let axes: BTreeSet<String> = lines
         .iter()
