@@ -179,6 +179,13 @@ impl HardwareConfig {
         Ok(config)
     }
 
+    /// The ERT threshold the models apply: None when ERT is off.
+    pub fn ert_threshold(&self) -> Option<f32> {
+        self.compositing
+            .ert
+            .then_some(self.compositing.ert_threshold as f32)
+    }
+
     /// Checks every field against its allowed range.
     pub fn validate(&self, source: &str) -> Result<()> {
         let range = |field: &str, value: u64, lo: u64, hi: u64| -> Result<()> {

@@ -910,10 +910,7 @@ fn precision(
         height,
     )?;
     let settings = RenderSettings {
-        ert_threshold: config
-            .compositing
-            .ert
-            .then_some(config.compositing.ert_threshold as f32),
+        ert_threshold: config.ert_threshold(),
         ..RenderSettings::default()
     };
     let start = Instant::now();

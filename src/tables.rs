@@ -326,14 +326,18 @@ fn format_value(v: f64) -> String {
 }
 
 impl Table {
-    pub fn markdown(&self) -> String {
-        let mut s = format!("### {}\n\n", self.title);
-        let header: Vec<String> = self
-            .row_fields
+    /// Row-field names, then the column labels.
+    fn header(&self) -> Vec<String> {
+        self.row_fields
             .iter()
             .cloned()
             .chain(self.columns.iter().cloned())
-            .collect();
+            .collect()
+    }
+
+    pub fn markdown(&self) -> String {
+        let mut s = format!("### {}\n\n", self.title);
+        let header = self.header();
         s += &format!("| {} |\n", header.join(" | "));
         s += &format!(
             "|{}|\n",
@@ -387,12 +391,7 @@ impl Table {
 
     pub fn csv(&self) -> String {
         let mut s = String::new();
-        let header: Vec<String> = self
-            .row_fields
-            .iter()
-            .cloned()
-            .chain(self.columns.iter().cloned())
-            .collect();
+        let header = self.header();
         s += &header.join(",");
         s += "\n";
         for (labels, values) in &self.rows {

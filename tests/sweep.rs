@@ -117,6 +117,13 @@ fn bad_experiments_fail_before_any_run_naming_axis_and_value() {
         (("phantom:shells:24", "no-such-dataset"), "no-such-dataset"),
         (("ert+leap4", "ert+leap5"), "leap5"),
         (("select = [0, 5, 11]", "select = [0, 72]"), "frame 72"),
+        (
+            (
+                "\"ray_queue.rays\" = [8, 16]",
+                "\"occupancy.subcube\" = [8]",
+            ),
+            "occupancy.subcube",
+        ),
     ] {
         let exp = write_experiment(&dir, &TINY.replace(edit.0, edit.1));
         let out = dir.join("out");
@@ -272,4 +279,29 @@ fn shards_merge_to_the_unsharded_sweep() {
     let t = vizsim(&["table", merged.to_str().unwrap()]);
     assert!(!t.status.success());
     assert!(String::from_utf8_lossy(&t.stderr).contains("ray_queue.rays"));
+}
+
+#[test]
+fn a_second_sweep_into_a_busy_folder_is_refused() {
+    let dir = temp_dir("lock");
+    let exp = write_experiment(&dir, TINY);
+    let out = dir.join("out");
+    let held = vizsim::experiment::store::ResultStore::open(&out).unwrap();
+    let r = vizsim(&[
+        "sweep",
+        exp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!r.status.success());
+    assert!(String::from_utf8_lossy(&r.stderr).contains("another sweep"));
+    drop(held);
+    let r = vizsim(&[
+        "sweep",
+        exp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--dry-run",
+    ]);
+    assert!(r.status.success());
 }

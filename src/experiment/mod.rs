@@ -61,10 +61,7 @@ fn renderer_for<'v>(
     let tf = transfer::resolve(&run.tf, &volume.name)?;
     let config = &run.config;
     let settings = RenderSettings {
-        ert_threshold: config
-            .compositing
-            .ert
-            .then_some(config.compositing.ert_threshold as f32),
+        ert_threshold: config.ert_threshold(),
         ..RenderSettings::default()
     };
     let renderer =

@@ -214,6 +214,14 @@ pub struct Expansion {
     pub volumes: BTreeMap<String, Arc<Volume>>,
 }
 
+/// Configuration fields a mode or the tf axis sets.
+const MODE_FIELDS: [&str; 4] = [
+    "compositing.ert",
+    "occupancy.subcube",
+    "occupancy.hierarchy",
+    "occupancy.kind",
+];
+
 /// Reads and expands an experiment file.
 pub fn load(path: &Path, data_dir: Option<&Path>) -> Result<Expansion> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
@@ -329,6 +337,13 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
     let mut axes: Vec<(String, Vec<toml::Value>)> = Vec::new();
     for (path, values) in &experiment.axes {
         let field = format!("axes.\"{path}\"");
+        // These are what `modes` and `tf` set; as axes they would be overridden silently.
+        if MODE_FIELDS.contains(&path.as_str()) {
+            return Err(bad(
+                &field,
+                "is set by `modes` / `tf`; sweep it there instead".into(),
+            ));
+        }
         let list = values
             .as_array()
             .ok_or_else(|| bad(&field, "expected a list of values".into()))?;

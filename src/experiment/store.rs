@@ -17,6 +17,8 @@ use crate::error::{Error, Result};
 pub const RESULTS: &str = "results.jsonl";
 pub const TIMING: &str = "timing.jsonl";
 pub const RESOLVED: &str = "experiment.resolved.json";
+/// Held (advisory lock) while a sweep writes into the folder.
+const LOCK: &str = ".sweep.lock";
 
 /// The complete lines of a results file (missing file = none), with their text. A torn last
 /// line is left out.
@@ -78,12 +80,28 @@ pub struct ResultStore {
     keys: HashSet<String>,
     results: File,
     timing: File,
+    /// Keeps the folder's lock for the store's lifetime.
+    _lock: File,
     pub torn_lines_dropped: usize,
 }
 
 impl ResultStore {
     pub fn open(dir: &Path) -> Result<ResultStore> {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        // One sweep per folder at a time: two writers would interleave their lines.
+        let lock_path = dir.join(LOCK);
+        let lock = OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .open(&lock_path)
+            .map_err(|e| Error::io(&lock_path, e))?;
+        if lock.try_lock().is_err() {
+            return Err(Error::Invalid(format!(
+                "{}: another sweep is writing into this folder",
+                dir.display()
+            )));
+        }
         let path = dir.join(RESULTS);
         let (lines, complete, torn) = scan(&path)?;
         if torn {
@@ -114,6 +132,7 @@ impl ResultStore {
             keys,
             results: append(&path)?,
             timing: append(&dir.join(TIMING))?,
+            _lock: lock,
             torn_lines_dropped: torn as usize,
         })
     }
