@@ -83,7 +83,8 @@ impl CompositingBuffer {
     /// Releases one sample that has arrived and is its ray's oldest outstanding one.
     pub fn release(&mut self) -> Option<BufferedSample> {
         let n = self.active.len();
-        let at = (0..n).map(|d| (self.next + d) % n).find(|&i| {
+        let next = self.next.min(n);
+        let at = (next..n).chain(0..next).find(|&i| {
             let ray = self.active[i];
             self.per_ray[ray]
                 .front()

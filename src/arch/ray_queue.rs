@@ -95,12 +95,11 @@ impl RayQueue {
                 .as_ref()
                 .is_some_and(|s| !s.busy && !s.finished() && eligible(s))
         };
+        // Slots from the round-robin pointer on, wrapping (no division per slot).
+        let from_pointer = || (self.next_round_robin..n).chain(0..self.next_round_robin);
         match self.selection {
-            RaySelection::RoundRobin => (0..n)
-                .map(|d| (self.next_round_robin + d) % n)
-                .find(|&i| ready(i)),
-            RaySelection::LaggingFirst => (0..n)
-                .map(|d| (self.next_round_robin + d) % n)
+            RaySelection::RoundRobin => from_pointer().find(|&i| ready(i)),
+            RaySelection::LaggingFirst => from_pointer()
                 .filter(|&i| ready(i))
                 .min_by_key(|&i| self.slots[i].as_ref().map(|s| s.k)),
             RaySelection::OldestFirst => (0..n)

@@ -176,6 +176,8 @@ struct Effects {
     same: [u32; KINDS],
     other: [u32; KINDS],
     all: [u32; KINDS],
+    /// Whether `other` has any rule (most commands have none: skip the bank loop).
+    has_other: bool,
 }
 
 /// The banks of one module with their timing state.
@@ -203,6 +205,9 @@ impl SdramDevice {
             };
             let slot = &mut table[rule.following.index()];
             *slot = (*slot).max(rule.latency);
+        }
+        for e in &mut effects {
+            e.has_other = e.other.iter().any(|&l| l > 0);
         }
         SdramDevice {
             banks: vec![
@@ -265,7 +270,7 @@ impl SdramDevice {
         raise(&mut self.all_banks, &effects.all, now);
         if let Some(own) = cmd.bank() {
             raise(&mut self.banks[own].earliest, &effects.same, now);
-            if effects.other.iter().any(|&l| l > 0) {
+            if effects.has_other {
                 for (b, bank) in self.banks.iter_mut().enumerate() {
                     if b != own {
                         raise(&mut bank.earliest, &effects.other, now);

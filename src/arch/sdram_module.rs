@@ -159,6 +159,7 @@ impl SdramModule {
     /// command waits for a timing rule, or it is idle until the next refresh) sleeps until
     /// then; a push wakes it. Sleeping is exact: the cycles slept through are counted as
     /// ticking would count them (tests/sdram.rs compares both).
+    #[inline]
     pub fn step(&mut self, now: u64) {
         if now < self.wake_at {
             return;
@@ -217,7 +218,7 @@ impl SdramModule {
                 }
             }
         }
-        let pending_close = self.to_close.iter().any(|&c| c);
+        let pending_close = self.policy == RowPolicy::Close && self.to_close.iter().any(|&c| c);
         let device = &self.device;
         let Some(index) = self
             .fifo
