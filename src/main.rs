@@ -166,6 +166,9 @@ enum Command {
         /// Output folder (default DIR/tables).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Use only frames that are multiples of this (e.g. 2: every other frame).
+        #[arg(long, default_value_t = 1)]
+        frame_step: u64,
     },
     /// Charts of a sweep's results (PNG + SVG): cycles or steps per frame against the frame,
     /// skippable sub-cubes and frame rate against the sub-cube size, swept fields.
@@ -175,6 +178,9 @@ enum Command {
         /// Output folder (default DIR/plots).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Use only frames that are multiples of this (e.g. 2: every other frame).
+        #[arg(long, default_value_t = 1)]
+        frame_step: u64,
     },
     /// Render orbits and a gallery of the phantoms and the datasets present into reports/demo/.
     Demo {
@@ -491,10 +497,15 @@ fn run(cli: Cli) -> Result<()> {
             rows,
             columns,
             out,
-        } => table(&dir, &metric, &rows, &columns, out.as_deref()),
-        Command::Plot { dir, out } => {
+            frame_step,
+        } => table(&dir, &metric, &rows, &columns, out.as_deref(), frame_step),
+        Command::Plot {
+            dir,
+            out,
+            frame_step,
+        } => {
             let out = out.unwrap_or_else(|| dir.join("plots"));
-            let lines = vizsim::tables::read_results(&dir.join("results.jsonl"))?;
+            let lines = read_results(&dir, frame_step)?;
             let written = vizsim::figures::write_all(&lines, &out)?;
             println!("{written} charts -> {}", out.display());
             Ok(())
@@ -1115,6 +1126,7 @@ fn quick_experiment(data_dir: Option<&Path>, out: &Path) -> Result<()> {
         &["dataset".to_string(), "tf".to_string()],
         "mode",
         None,
+        1,
     )?;
     let lines = vizsim::tables::read_results(&out.join("results.jsonl"))?;
     let charts = vizsim::figures::write_all(&lines, &out.join("plots"))?;
@@ -1236,15 +1248,28 @@ fn sweep(
     Ok(())
 }
 
+/// A sweep folder's results, keeping frames that are multiples of `frame_step`.
+fn read_results(dir: &Path, frame_step: u64) -> Result<Vec<serde_json::Value>> {
+    anyhow::ensure!(frame_step >= 1, "--frame-step must be at least 1");
+    let mut lines = vizsim::tables::read_results(&dir.join("results.jsonl"))?;
+    lines.retain(|l| {
+        l.get("frame")
+            .and_then(|f| f.as_u64())
+            .is_none_or(|f| f % frame_step == 0)
+    });
+    Ok(lines)
+}
+
 fn table(
     dir: &Path,
     metrics: &[vizsim::tables::Metric],
     rows: &[String],
     columns: &str,
     out: Option<&Path>,
+    frame_step: u64,
 ) -> Result<()> {
     use vizsim::tables::{self, Metric};
-    let lines = tables::read_results(&dir.join("results.jsonl"))?;
+    let lines = read_results(dir, frame_step)?;
     anyhow::ensure!(!lines.is_empty(), "{}: no results", dir.display());
     let out = out
         .map(Path::to_path_buf)
@@ -1271,7 +1296,16 @@ fn table(
                 "step" => "step model, published cost 12.5 ns per step",
                 _ => "cycle-accurate model at its clock",
             };
-            let title = format!("{} ({clock}), mean over frames", metric.label());
+            let frames: std::collections::BTreeSet<u64> = of_model
+                .iter()
+                .filter_map(|l| l.get("frame").and_then(|f| f.as_u64()))
+                .collect();
+            let title = format!(
+                "{} ({clock}), mean over {} frame{}",
+                metric.label(),
+                frames.len(),
+                if frames.len() == 1 { "" } else { "s" }
+            );
             let rows_here: Vec<String> = rows.iter().filter(|r| *r != "model").cloned().collect();
             let table = tables::build(&of_model, metric, &rows_here, columns, title)?;
             let stem = out.join(format!("{model}-{}", metric.file_name()));
