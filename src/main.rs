@@ -169,6 +169,9 @@ enum Command {
         /// Use only frames that are multiples of this (e.g. 2: every other frame).
         #[arg(long, default_value_t = 1)]
         frame_step: u64,
+        /// Only this model's results (`step` or `cycle`).
+        #[arg(long)]
+        model: Option<String>,
     },
     /// Charts of a sweep's results (PNG + SVG): cycles or steps per frame against the frame,
     /// skippable sub-cubes and frame rate against the sub-cube size, swept fields.
@@ -181,6 +184,9 @@ enum Command {
         /// Use only frames that are multiples of this (e.g. 2: every other frame).
         #[arg(long, default_value_t = 1)]
         frame_step: u64,
+        /// Only this model's results (`step` or `cycle`).
+        #[arg(long)]
+        model: Option<String>,
     },
     /// Render orbits and a gallery of the phantoms and the datasets present into reports/demo/.
     Demo {
@@ -498,14 +504,24 @@ fn run(cli: Cli) -> Result<()> {
             columns,
             out,
             frame_step,
-        } => table(&dir, &metric, &rows, &columns, out.as_deref(), frame_step),
+            model,
+        } => table(
+            &dir,
+            &metric,
+            &rows,
+            &columns,
+            out.as_deref(),
+            frame_step,
+            model.as_deref(),
+        ),
         Command::Plot {
             dir,
             out,
             frame_step,
+            model,
         } => {
             let out = out.unwrap_or_else(|| dir.join("plots"));
-            let lines = read_results(&dir, frame_step)?;
+            let lines = read_results(&dir, frame_step, model.as_deref())?;
             let written = vizsim::figures::write_all(&lines, &out)?;
             println!("{written} charts -> {}", out.display());
             Ok(())
@@ -1127,6 +1143,7 @@ fn quick_experiment(data_dir: Option<&Path>, out: &Path) -> Result<()> {
         "mode",
         None,
         1,
+        None,
     )?;
     let lines = vizsim::tables::read_results(&out.join("results.jsonl"))?;
     let charts = vizsim::figures::write_all(&lines, &out.join("plots"))?;
@@ -1248,14 +1265,28 @@ fn sweep(
     Ok(())
 }
 
-/// A sweep folder's results, keeping frames that are multiples of `frame_step`.
-fn read_results(dir: &Path, frame_step: u64) -> Result<Vec<serde_json::Value>> {
+/// A sweep folder's results, keeping frames that are multiples of `frame_step` (and one
+/// model's when given).
+fn read_results(
+    dir: &Path,
+    frame_step: u64,
+    model: Option<&str>,
+) -> Result<Vec<serde_json::Value>> {
     anyhow::ensure!(frame_step >= 1, "--frame-step must be at least 1");
+    if let Some(m) = model {
+        anyhow::ensure!(
+            m == "step" || m == "cycle",
+            "--model {m}: expected `step` or `cycle`"
+        );
+    }
     let mut lines = vizsim::tables::read_results(&dir.join("results.jsonl"))?;
     lines.retain(|l| {
-        l.get("frame")
+        let frame_kept = l
+            .get("frame")
             .and_then(|f| f.as_u64())
-            .is_none_or(|f| f % frame_step == 0)
+            .is_none_or(|f| f % frame_step == 0);
+        let model_kept = model.is_none_or(|m| l.get("model").and_then(|v| v.as_str()) == Some(m));
+        frame_kept && model_kept
     });
     Ok(lines)
 }
@@ -1267,9 +1298,10 @@ fn table(
     columns: &str,
     out: Option<&Path>,
     frame_step: u64,
+    model: Option<&str>,
 ) -> Result<()> {
     use vizsim::tables::{self, Metric};
-    let lines = read_results(dir, frame_step)?;
+    let lines = read_results(dir, frame_step, model)?;
     anyhow::ensure!(!lines.is_empty(), "{}: no results", dir.display());
     let out = out
         .map(Path::to_path_buf)
@@ -1324,7 +1356,11 @@ fn table(
             all_markdown += "\n";
         }
     }
-    vizsim::output::write_atomically(&out.join("tables.md"), |w| {
+    let summary = match model {
+        Some(m) => format!("tables-{m}.md"),
+        None => "tables.md".to_string(),
+    };
+    vizsim::output::write_atomically(&out.join(summary), |w| {
         std::io::Write::write_all(w, all_markdown.as_bytes())
     })?;
     println!("tables -> {}", out.display());
