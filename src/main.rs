@@ -1230,16 +1230,28 @@ fn sweep(
         .collect();
     let count = |model| pending.iter().filter(|r| r.model == model).count();
     let threads = rayon::current_num_threads();
+    let estimate = |model| {
+        let of: Vec<&spec::RunSpec> = pending
+            .iter()
+            .copied()
+            .filter(|r| r.model == model)
+            .collect();
+        experiment::estimate_seconds(&expansion, &of, threads) / 60.0
+    };
     println!(
-        "{}: {} runs{} ({} step model, {} cycle model to run; {} already done in {}); estimate {:.0} s on {threads} threads",
+        "{}: {} runs{} ({} step model, {} cycle model to run; {} already done in {}); \
+         estimate {:.0} + {:.0} min on {threads} threads (step + cycle model; rough)",
         expansion.experiment.name,
         mine.len(),
-        shard.map(|s| format!(" in shard {}/{}", s.index, s.count)).unwrap_or_default(),
+        shard
+            .map(|s| format!(" in shard {}/{}", s.index, s.count))
+            .unwrap_or_default(),
         count(spec::Model::Step),
         count(spec::Model::Cycle),
         mine.len() - pending.len(),
         out.display(),
-        experiment::estimate_seconds(&expansion, &pending, threads),
+        estimate(spec::Model::Step),
+        estimate(spec::Model::Cycle),
     );
     for s in &expansion.skipped {
         println!("  left out: {} {}: {}", s.dataset, s.mode, s.reason);

@@ -259,27 +259,28 @@ pub fn sweep(
     Ok(summary)
 }
 
-/// A rough time estimate for a dry run, in seconds on `threads` cores: every ray of a frame
-/// takes at most the volume's diagonal in samples (none mode); leaping and ERT runs are
-/// counted at a third of that. Rates: step model 60 M steps/s, cycle model 4 M cycles/s per
-/// core with ~1.2 cycles per step (docs/performance.md).
+/// A rough time estimate for a dry run, in seconds on `threads` cores. Steps per frame ≈
+/// pixels × the volume's largest extent × a mode factor (0.8 none, 0.75 ERT, 0.4 leaping: the
+/// paper protocol's measured means). Rates per core as measured in a sweep on the 2-core
+/// machine (docs/results.md): step model 50 M steps/s, cycle model 2 M cycles/s at 1.1 cycles
+/// per step.
 pub fn estimate_seconds(expansion: &Expansion, runs: &[&RunSpec], threads: usize) -> f64 {
     let mut total = 0.0;
     for run in runs {
         let dims = expansion.volumes[&run.dataset].dims;
         let largest = *dims.iter().max().unwrap_or(&1) as f64;
-        let mean_path = largest * 0.8;
-        let samples = run.size.0 as f64 * run.size.1 as f64 * mean_path * 0.6;
-        let factor = if run.mode.subcube > 0 || run.mode.ert {
-            1.0 / 3.0
+        let factor = if run.mode.subcube > 0 {
+            0.4
+        } else if run.mode.ert {
+            0.75
         } else {
-            1.0
+            0.8
         };
-        total += samples * factor
-            / match run.model {
-                Model::Step => 60e6,
-                Model::Cycle => 4e6 / 1.2,
-            };
+        let steps = run.size.0 as f64 * run.size.1 as f64 * largest * factor;
+        total += match run.model {
+            Model::Step => steps / 50e6,
+            Model::Cycle => steps * 1.1 / 2e6,
+        };
     }
     total / threads.max(1) as f64
 }
