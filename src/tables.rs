@@ -54,6 +54,10 @@ pub enum Metric {
     DiscardedAfterErt,
     /// Memory stall cycles (cycle model).
     MemoryStalls,
+    /// SDRAM row misses, i.e. page reloads (cycle model).
+    RowMisses,
+    /// Clock cycles per step: 1 is the ideal of one step per clock (cycle model).
+    CyclesPerStep,
     /// Skippable (empty) sub-cubes, %.
     Skippable,
 }
@@ -69,6 +73,8 @@ impl Metric {
             Metric::NsPerAccess => "ns per voxel access",
             Metric::DiscardedAfterErt => "samples discarded after ERT per frame",
             Metric::MemoryStalls => "memory stall cycles per frame",
+            Metric::RowMisses => "row misses (page reloads) per frame",
+            Metric::CyclesPerStep => "cycles per step",
             Metric::Skippable => "skippable sub-cubes (%)",
         }
     }
@@ -83,6 +89,8 @@ impl Metric {
             Metric::NsPerAccess => "ns-per-access",
             Metric::DiscardedAfterErt => "discarded-after-ert",
             Metric::MemoryStalls => "memory-stalls",
+            Metric::RowMisses => "row-misses",
+            Metric::CyclesPerStep => "cycles-per-step",
             Metric::Skippable => "skippable",
         }
     }
@@ -102,6 +110,11 @@ impl Metric {
                 .get("stall_cycles")
                 .and_then(|s| s.get("memory"))
                 .and_then(Value::as_f64),
+            Metric::RowMisses => field("row_misses"),
+            Metric::CyclesPerStep => {
+                let steps = field("steps")?;
+                (steps > 0.0).then(|| field("cycles").map(|c| c / steps))?
+            }
             Metric::Skippable => field("skippable_subcubes_percent"),
         }
     }
