@@ -235,10 +235,19 @@ pub fn sweep(
         }
         groups.entry(g).or_default().push(run);
     }
+    // Groups run in parallel too (a group may have fewer frames than there are cores), the
+    // longest first so that no long group is left running alone at the end.
+    let cost = |g: &(String, String, String)| -> f64 {
+        groups[g]
+            .iter()
+            .map(|run| estimated_run_seconds(expansion, run))
+            .sum()
+    };
+    order.sort_by(|a, b| cost(b).total_cmp(&cost(a)));
     let store = Mutex::new(store);
     let name = &expansion.experiment.name;
-    for g in order {
-        let runs = &groups[&g];
+    order.par_iter().try_for_each(|g| -> Result<()> {
+        let runs = &groups[g];
         let volume = &expansion.volumes[&runs[0].dataset];
         let (renderer, tf_name) = renderer_for(runs[0], volume)?;
         runs.par_iter().try_for_each(|run| -> Result<()> {
@@ -251,8 +260,8 @@ pub fn sweep(
                 .append(&run.key, &line, wall)?;
             bar.inc(1);
             Ok(())
-        })?;
-    }
+        })
+    })?;
     bar.finish_and_clear();
     summary.ran = pending.len();
     summary.wall_seconds = start.elapsed().as_secs_f64();
@@ -265,24 +274,29 @@ pub fn sweep(
 /// machine (docs/results.md): step model 50 M steps/s, cycle model 2 M cycles/s at 1.1 cycles
 /// per step.
 pub fn estimate_seconds(expansion: &Expansion, runs: &[&RunSpec], threads: usize) -> f64 {
-    let mut total = 0.0;
-    for run in runs {
-        let dims = expansion.volumes[&run.dataset].dims;
-        let largest = *dims.iter().max().unwrap_or(&1) as f64;
-        let factor = if run.mode.subcube > 0 {
-            0.4
-        } else if run.mode.ert {
-            0.75
-        } else {
-            0.8
-        };
-        let steps = run.size.0 as f64 * run.size.1 as f64 * largest * factor;
-        total += match run.model {
-            Model::Step => steps / 50e6,
-            Model::Cycle => steps * 1.1 / 2e6,
-        };
-    }
+    let total: f64 = runs
+        .iter()
+        .map(|run| estimated_run_seconds(expansion, run))
+        .sum();
     total / threads.max(1) as f64
+}
+
+/// One run's estimated time on one core, in seconds (see `estimate_seconds`).
+fn estimated_run_seconds(expansion: &Expansion, run: &RunSpec) -> f64 {
+    let dims = expansion.volumes[&run.dataset].dims;
+    let largest = *dims.iter().max().unwrap_or(&1) as f64;
+    let factor = if run.mode.subcube > 0 {
+        0.4
+    } else if run.mode.ert {
+        0.75
+    } else {
+        0.8
+    };
+    let steps = run.size.0 as f64 * run.size.1 as f64 * largest * factor;
+    match run.model {
+        Model::Step => steps / 50e6,
+        Model::Cycle => steps * 1.1 / 2e6,
+    }
 }
 
 /// Merges the results of several sweep folders (shards) into `out`: duplicates by key must
