@@ -259,6 +259,17 @@ impl AddressMap {
             column: 0,
         }; 8];
         let mut n = 0;
+        self.for_each_sample_word(base, |word| {
+            out[n] = word;
+            n += 1;
+        });
+        (out, n)
+    }
+
+    /// Calls `f` with each word of the sample's neighbourhood, one per module (every mapping
+    /// puts the 2×2×2 neighbourhood on distinct modules; tests/sdram.rs checks it).
+    #[inline]
+    pub fn for_each_sample_word(&self, base: [usize; 3], mut f: impl FnMut(WordAddress)) {
         let dz_range = match self.config.mapping {
             Mapping::Interleaved8 => 0..2,
             _ => 0..1, // the word at z holds the pair (z, z+1)
@@ -275,12 +286,10 @@ impl AddressMap {
                         Mapping::Interleaved8 => [x >> 1, y >> 1, z >> 1],
                         _ => [x >> 1, y >> 1, z],
                     };
-                    out[n] = self.word(module, local);
-                    n += 1;
+                    f(self.word(module, local));
                 }
             }
         }
-        (out, n)
     }
 
     #[inline]

@@ -84,7 +84,9 @@ impl OvertakingFifo {
         if self.queue.is_empty() {
             return None;
         }
-        if !self.enabled {
+        // The oldest request is served if overtaking is off, if it is a row hit itself (the
+        // common case), or if it reached the bypass bound.
+        if !self.enabled || is_open(&self.queue[0].addr) {
             return Some(0);
         }
         // Every take bypasses all requests older than the one taken, so bypass counts never

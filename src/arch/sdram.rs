@@ -189,7 +189,13 @@ pub struct SdramDevice {
     all_banks: [u64; KINDS],
     /// The command bus: one command per cycle.
     bus_free: u64,
+    /// Open row per bank, `CLOSED` if none: a copy of `Bank::open_row` for the controller's
+    /// per-request row-hit test (banks <= 16, so `bank & 15` indexes it without a check).
+    open_rows: [u32; 16],
 }
+
+/// No row open (rows are < 2^24, validated).
+const CLOSED: u32 = u32::MAX;
 
 impl SdramDevice {
     pub fn new(banks: usize, timing: &SdramTiming) -> SdramDevice {
@@ -220,11 +226,18 @@ impl SdramDevice {
             effects,
             all_banks: [0; KINDS],
             bus_free: 0,
+            open_rows: [CLOSED; 16],
         }
     }
 
     pub fn open_row(&self, bank: usize) -> Option<u32> {
         self.banks[bank].open_row
+    }
+
+    /// Whether `row` is the open row of `bank`.
+    #[inline]
+    pub fn row_is_open(&self, bank: u32, row: u32) -> bool {
+        self.open_rows[bank as usize & 15] == row
     }
 
     pub fn banks(&self) -> usize {
@@ -279,8 +292,14 @@ impl SdramDevice {
             }
         }
         match cmd {
-            Command::Act { bank, row } => self.banks[bank].open_row = Some(row),
-            Command::Pre { bank } => self.banks[bank].open_row = None,
+            Command::Act { bank, row } => {
+                self.banks[bank].open_row = Some(row);
+                self.open_rows[bank] = row;
+            }
+            Command::Pre { bank } => {
+                self.banks[bank].open_row = None;
+                self.open_rows[bank] = CLOSED;
+            }
             Command::Read { .. } | Command::Ref => {}
         }
         self.bus_free = now + 1;

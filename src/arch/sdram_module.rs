@@ -220,10 +220,7 @@ impl SdramModule {
         }
         let pending_close = self.policy == RowPolicy::Close && self.to_close.iter().any(|&c| c);
         let device = &self.device;
-        let Some(index) = self
-            .fifo
-            .select(|a| device.open_row(a.bank as usize) == Some(a.row))
-        else {
+        let Some(index) = self.fifo.select(|a| device.row_is_open(a.bank, a.row)) else {
             return if pending_close { now + 1 } else { u64::MAX };
         };
         let request = *self.fifo.get_mut(index);
@@ -373,22 +370,19 @@ impl SdramMemory {
 
 impl VoxelMemory for SdramMemory {
     fn try_push(&mut self, request: SampleRequest, now: u64) -> bool {
-        let (words, n) = self.map.sample_words(request.base);
-        let words = &words[..n];
-        if !words
-            .iter()
-            .all(|w| self.modules[w.module as usize].can_accept())
-        {
+        // A sample's words go one to each module: it enters only if every module has room.
+        if !self.modules.iter().all(SdramModule::can_accept) {
             return false;
         }
         let tag = request.tag as usize;
         if self.missing.len() <= tag {
             self.missing.resize(tag + 1, 0);
         }
-        self.missing[tag] = n as u8;
-        for w in words {
-            self.modules[w.module as usize].push(request.tag as u32, *w, now);
-        }
+        self.missing[tag] = self.modules.len() as u8;
+        let modules = &mut self.modules;
+        self.map.for_each_sample_word(request.base, |word| {
+            modules[word.module as usize].push(request.tag as u32, word, now)
+        });
         true
     }
 
