@@ -271,13 +271,14 @@ pub fn sweep(
 /// A rough time estimate for a dry run, in seconds on `threads` cores. Steps per frame ≈
 /// pixels × the volume's largest extent × a mode factor (0.8 none, 0.75 ERT, 0.4 leaping: the
 /// paper protocol's measured means). Rates per core as measured in a sweep on the 2-core
-/// machine (docs/results.md): step model 50 M steps/s, cycle model 2 M cycles/s at 1.1 cycles
+/// machine (docs/results.md): step model 50 M steps/s, cycle model 5 M cycles/s at 1.1 cycles
 /// per step.
 pub fn estimate_seconds(expansion: &Expansion, runs: &[&RunSpec], threads: usize) -> f64 {
-    let total: f64 = runs
+    // A fold from +0.0: an empty float sum is -0.0 and would print as "-0".
+    let total = runs
         .iter()
         .map(|run| estimated_run_seconds(expansion, run))
-        .sum();
+        .fold(0.0, |a, b| a + b);
     total / threads.max(1) as f64
 }
 
@@ -295,7 +296,7 @@ fn estimated_run_seconds(expansion: &Expansion, run: &RunSpec) -> f64 {
     let steps = run.size.0 as f64 * run.size.1 as f64 * largest * factor;
     match run.model {
         Model::Step => steps / 50e6,
-        Model::Cycle => steps * 1.1 / 2e6,
+        Model::Cycle => steps * 1.1 / 5e6,
     }
 }
 
