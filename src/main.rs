@@ -30,7 +30,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Render one frame with the float reference ray caster.
+    /// Render one frame: float reference ray caster, or fixed-point model (--model fixed).
     Render(RenderArgs),
     /// Simulate one frame clock by clock on the cycle-accurate pipeline.
     Sim(SimArgs),
