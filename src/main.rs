@@ -152,8 +152,8 @@ enum Command {
     /// Tables of a sweep's results (Markdown and CSV): rows dataset x classification, columns
     /// the acceleration modes, cells averaged over the frames.
     Table {
-        /// Sweep folder (holding results.jsonl).
-        dir: PathBuf,
+        #[command(flatten)]
+        results: ResultsArgs,
         /// Metrics (one table each per model; default fps, cycles, steps, page-hits).
         #[arg(long, value_enum, value_delimiter = ',')]
         metric: Vec<vizsim::tables::Metric>,
@@ -166,27 +166,15 @@ enum Command {
         /// Output folder (default DIR/tables).
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Use only frames that are multiples of this (e.g. 2: every other frame).
-        #[arg(long, default_value_t = 1)]
-        frame_step: u64,
-        /// Only this model's results (`step` or `cycle`).
-        #[arg(long)]
-        model: Option<String>,
     },
     /// Charts of a sweep's results (PNG + SVG): cycles or steps per frame against the frame,
     /// skippable sub-cubes and frame rate against the sub-cube size, swept fields.
     Plot {
-        /// Sweep folder (holding results.jsonl).
-        dir: PathBuf,
+        #[command(flatten)]
+        results: ResultsArgs,
         /// Output folder (default DIR/plots).
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Use only frames that are multiples of this (e.g. 2: every other frame).
-        #[arg(long, default_value_t = 1)]
-        frame_step: u64,
-        /// Only this model's results (`step` or `cycle`).
-        #[arg(long)]
-        model: Option<String>,
     },
     /// Render orbits and a gallery of the phantoms and the datasets present into reports/demo/.
     Demo {
@@ -498,30 +486,15 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Table {
-            dir,
+            results,
             metric,
             rows,
             columns,
             out,
-            frame_step,
-            model,
-        } => table(
-            &dir,
-            &metric,
-            &rows,
-            &columns,
-            out.as_deref(),
-            frame_step,
-            model.as_deref(),
-        ),
-        Command::Plot {
-            dir,
-            out,
-            frame_step,
-            model,
-        } => {
-            let out = out.unwrap_or_else(|| dir.join("plots"));
-            let lines = read_results(&dir, frame_step, model.as_deref())?;
+        } => table(&results, &metric, &rows, &columns, out.as_deref()),
+        Command::Plot { results, out } => {
+            let out = out.unwrap_or_else(|| results.dir.join("plots"));
+            let lines = results.read()?;
             let written = vizsim::figures::write_all(&lines, &out)?;
             println!("{written} charts -> {}", out.display());
             Ok(())
@@ -1136,16 +1109,19 @@ fn quick_experiment(data_dir: Option<&Path>, out: &Path) -> Result<()> {
         summary.wall_seconds,
         out.display()
     );
+    let results = ResultsArgs {
+        dir: out.to_path_buf(),
+        frame_step: 1,
+        model: None,
+    };
     table(
-        out,
+        &results,
         &[],
         &["dataset".to_string(), "tf".to_string()],
         "mode",
         None,
-        1,
-        None,
     )?;
-    let lines = vizsim::tables::read_results(&out.join("results.jsonl"))?;
+    let lines = results.read()?;
     let charts = vizsim::figures::write_all(&lines, &out.join("plots"))?;
     println!("{charts} charts -> {}", out.join("plots").display());
     Ok(())
@@ -1279,41 +1255,54 @@ fn sweep(
 
 /// A sweep folder's results, keeping frames that are multiples of `frame_step` (and one
 /// model's when given).
-fn read_results(
-    dir: &Path,
+/// The sweep results a `table` or `plot` reads, and which of them it keeps.
+#[derive(Args)]
+struct ResultsArgs {
+    /// Sweep folder (holding results.jsonl).
+    dir: PathBuf,
+    /// Use only frames that are multiples of this (e.g. 2: every other frame).
+    #[arg(long, default_value_t = 1)]
     frame_step: u64,
-    model: Option<&str>,
-) -> Result<Vec<serde_json::Value>> {
-    anyhow::ensure!(frame_step >= 1, "--frame-step must be at least 1");
-    if let Some(m) = model {
-        anyhow::ensure!(
-            m == "step" || m == "cycle",
-            "--model {m}: expected `step` or `cycle`"
-        );
+    /// Only this model's results (`step` or `cycle`).
+    #[arg(long)]
+    model: Option<String>,
+}
+
+impl ResultsArgs {
+    fn read(&self) -> Result<Vec<serde_json::Value>> {
+        anyhow::ensure!(self.frame_step >= 1, "--frame-step must be at least 1");
+        if let Some(m) = &self.model {
+            anyhow::ensure!(
+                m == "step" || m == "cycle",
+                "--model {m}: expected `step` or `cycle`"
+            );
+        }
+        let mut lines = vizsim::tables::read_results(&self.dir.join("results.jsonl"))?;
+        lines.retain(|l| {
+            let frame_kept = l
+                .get("frame")
+                .and_then(|f| f.as_u64())
+                .is_none_or(|f| f % self.frame_step == 0);
+            let model_kept = self
+                .model
+                .as_deref()
+                .is_none_or(|m| l.get("model").and_then(|v| v.as_str()) == Some(m));
+            frame_kept && model_kept
+        });
+        Ok(lines)
     }
-    let mut lines = vizsim::tables::read_results(&dir.join("results.jsonl"))?;
-    lines.retain(|l| {
-        let frame_kept = l
-            .get("frame")
-            .and_then(|f| f.as_u64())
-            .is_none_or(|f| f % frame_step == 0);
-        let model_kept = model.is_none_or(|m| l.get("model").and_then(|v| v.as_str()) == Some(m));
-        frame_kept && model_kept
-    });
-    Ok(lines)
 }
 
 fn table(
-    dir: &Path,
+    results: &ResultsArgs,
     metrics: &[vizsim::tables::Metric],
     rows: &[String],
     columns: &str,
     out: Option<&Path>,
-    frame_step: u64,
-    model: Option<&str>,
 ) -> Result<()> {
     use vizsim::tables::{self, Metric};
-    let lines = read_results(dir, frame_step, model)?;
+    let dir = &results.dir;
+    let lines = results.read()?;
     anyhow::ensure!(!lines.is_empty(), "{}: no results", dir.display());
     let out = out
         .map(Path::to_path_buf)
@@ -1368,7 +1357,7 @@ fn table(
             all_markdown += "\n";
         }
     }
-    let summary = match model {
+    let summary = match &results.model {
         Some(m) => format!("tables-{m}.md"),
         None => "tables.md".to_string(),
     };
