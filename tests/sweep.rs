@@ -257,6 +257,19 @@ fn shards_merge_to_the_unsharded_sweep() {
         std::fs::read(merged.join("results.jsonl")).unwrap(),
         std::fs::read(canonical.join("results.jsonl")).unwrap()
     );
+    // The shards' wall times come along: one per merged run, keyed like the results.
+    let keys = |path: &Path| -> Vec<String> {
+        let mut keys: Vec<String> = sorted_lines(path)
+            .iter()
+            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["key"].to_string())
+            .collect();
+        keys.sort();
+        keys
+    };
+    assert_eq!(
+        keys(&merged.join("timing.jsonl")),
+        keys(&merged.join("results.jsonl"))
+    );
     assert!(!vizsim(&["sweep", exp, "--out", "x", "--shard", "3/3"])
         .status
         .success());

@@ -302,7 +302,8 @@ fn estimated_run_seconds(expansion: &Expansion, run: &RunSpec) -> f64 {
 
 /// Merges the results of several sweep folders (shards) into `out`: duplicates by key must
 /// agree; the merged file is sorted by key, so any split of the same runs merges to the same
-/// bytes.
+/// bytes. Wall times (`timing.jsonl`) are merged too, one per run, the first input's when a
+/// run was timed in several (wall times differ between machines; results do not).
 pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
     let mut lines: BTreeMap<String, String> = BTreeMap::new();
     for dir in inputs {
@@ -335,6 +336,25 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
         }
         Ok(())
     })?;
+    let mut timings: BTreeMap<String, String> = BTreeMap::new();
+    for dir in inputs {
+        for (line, text) in store::read_lines(&dir.join(store::TIMING))? {
+            let key = line.get("key").and_then(Value::as_str);
+            if let Some(key) = key.filter(|k| lines.contains_key(*k)) {
+                timings.entry(key.to_string()).or_insert(text);
+            }
+        }
+    }
+    if !timings.is_empty() {
+        crate::output::write_atomically(&out.join(store::TIMING), |w| {
+            use std::io::Write;
+            for text in timings.values() {
+                w.write_all(text.as_bytes())?;
+                w.write_all(b"\n")?;
+            }
+            Ok(())
+        })?;
+    }
     if let Some(first) = inputs.first() {
         let resolved = first.join(store::RESOLVED);
         if resolved.exists() && out.join(store::RESOLVED) != resolved {
