@@ -423,6 +423,16 @@ fn cycle_model_with_sdram_equals_the_functional_image() {
             assert_eq!(total(&m.address_fifo_occupancy), jumped.stats.cycles);
             assert_eq!(total(&m.voxel_fifo_occupancy), jumped.stats.cycles);
             assert!(m.busy_cycles > 0 && m.busy_cycles < jumped.stats.cycles);
+            // The memory lower bound: every sample reads one word per module, and a module's
+            // command bus carries one command per cycle.
+            assert_eq!(m.reads, jumped.stats.samples);
+            let commands = m.reads + m.activates + m.precharges + m.refreshes;
+            assert!(
+                jumped.stats.cycles >= commands,
+                "{} cycles < {commands} commands on one module",
+                jumped.stats.cycles
+            );
+            assert!(m.activates >= m.row_misses && m.row_hits + m.row_misses == m.reads);
         }
         assert!(
             jumped.frame.pixels == renderer.render(&cam).pixels,
