@@ -328,14 +328,7 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
         }
     }
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    crate::output::write_atomically(&out.join(store::RESULTS), |w| {
-        use std::io::Write;
-        for text in lines.values() {
-            w.write_all(text.as_bytes())?;
-            w.write_all(b"\n")?;
-        }
-        Ok(())
-    })?;
+    write_lines(&out.join(store::RESULTS), &lines)?;
     let mut timings: BTreeMap<String, String> = BTreeMap::new();
     for dir in inputs {
         for (line, text) in store::read_lines(&dir.join(store::TIMING))? {
@@ -346,14 +339,7 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
         }
     }
     if !timings.is_empty() {
-        crate::output::write_atomically(&out.join(store::TIMING), |w| {
-            use std::io::Write;
-            for text in timings.values() {
-                w.write_all(text.as_bytes())?;
-                w.write_all(b"\n")?;
-            }
-            Ok(())
-        })?;
+        write_lines(&out.join(store::TIMING), &timings)?;
     }
     if let Some(first) = inputs.first() {
         let resolved = first.join(store::RESOLVED);
@@ -366,4 +352,16 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
         }
     }
     Ok(lines.len())
+}
+
+/// Writes JSON lines (the map's values, in key order) atomically.
+fn write_lines(path: &Path, lines: &BTreeMap<String, String>) -> Result<()> {
+    crate::output::write_atomically(path, |w| {
+        use std::io::Write;
+        for text in lines.values() {
+            w.write_all(text.as_bytes())?;
+            w.write_all(b"\n")?;
+        }
+        Ok(())
+    })
 }
