@@ -1253,9 +1253,8 @@ fn sweep(
     Ok(())
 }
 
-/// A sweep folder's results, keeping frames that are multiples of `frame_step` (and one
-/// model's when given).
-/// The sweep results a `table` or `plot` reads, and which of them it keeps.
+/// The sweep results a `table` or `plot` reads: a sweep folder's results, keeping frames that
+/// are multiples of `frame_step` (and one model's when given).
 #[derive(Args)]
 struct ResultsArgs {
     /// Sweep folder (holding results.jsonl).
