@@ -179,6 +179,38 @@ impl HardwareConfig {
         Ok(config)
     }
 
+    /// The fields where this configuration differs from the embedded default (the calibrated
+    /// preset), as `section.field = value`, in file order: what a preset or override resolved to.
+    pub fn differences_from_default(&self) -> Vec<String> {
+        fn flatten(prefix: &str, table: &toml::Table, out: &mut Vec<(String, toml::Value)>) {
+            for (key, value) in table {
+                let path = if prefix.is_empty() {
+                    key.clone()
+                } else {
+                    format!("{prefix}.{key}")
+                };
+                match value {
+                    toml::Value::Table(t) => flatten(&path, t, out),
+                    v => out.push((path, v.clone())),
+                }
+            }
+        }
+        let fields = |config: &HardwareConfig| {
+            let mut out = Vec::new();
+            if let Ok(table) = toml::Table::try_from(config) {
+                flatten("", &table, &mut out);
+            }
+            out
+        };
+        let default: std::collections::BTreeMap<String, toml::Value> =
+            fields(&Self::default_config()).into_iter().collect();
+        fields(self)
+            .into_iter()
+            .filter(|(path, value)| default.get(path) != Some(value))
+            .map(|(path, value)| format!("{path} = {value}"))
+            .collect()
+    }
+
     /// The ERT threshold the models apply: None when ERT is off.
     pub fn ert_threshold(&self) -> Option<f32> {
         self.compositing

@@ -4,16 +4,12 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use crate::camera::Camera;
 use crate::compare::{compare, Comparison};
 use crate::config::{apply_override, HardwareConfig};
 use crate::error::{Error, Result};
-use crate::functional::renderer::{FixedRenderer, Leaping};
 use crate::occupancy::OccupancyKind;
 use crate::plot::{LineChart, Series};
-use crate::render::float::FloatRenderer;
-use crate::render::RenderSettings;
-use crate::transfer::TransferFunction;
+use crate::run::{self, Model, Probes, RunDescription, RunReport};
 use crate::volume::Volume;
 
 /// The image widths swept, with their ranges (the published question: increment fraction bits).
@@ -76,61 +72,70 @@ fn with_field(base: &HardwareConfig, field: &str, bits: u32) -> Result<HardwareC
     HardwareConfig::from_toml_str(&table.to_string(), "precision sweep", &[])
 }
 
-pub fn sweep(
-    volume: &Volume,
-    tf: &TransferFunction,
-    base: &HardwareConfig,
-    camera: &Camera,
-    settings: &RenderSettings,
-) -> Result<PrecisionReport> {
-    let reference = FloatRenderer::new(volume, tf, settings)?.render(camera);
+/// Runs the precision sweep of `base` (its dataset, transfer function, view and hardware) on
+/// `volume`, every point through the one run path: the float reference once, then the step
+/// model with one width changed at a time.
+pub fn sweep(base: &RunDescription, volume: &Volume) -> Result<PrecisionReport> {
+    let frame_of = |run: &RunDescription| -> Result<RunReport> {
+        run::execute(run, &run::prepare(run, volume)?, Probes::default())
+    };
+    let reference = frame_of(&RunDescription {
+        model: Model::Float,
+        ..base.clone()
+    })?;
+    let (width, height) = base.size;
+    let mut plain_hardware = base.hardware.clone();
+    plain_hardware.occupancy.subcube = 0;
+    plain_hardware.occupancy.hierarchy = false;
     let mut image = Vec::new();
     for (field, range) in IMAGE_AXES {
         for bits in range.clone() {
-            let config = with_field(base, field, bits)?;
-            let frame =
-                FixedRenderer::new(volume, tf, settings, &config, Leaping::None)?.render(camera);
+            let point = RunDescription {
+                model: Model::Step,
+                hardware: with_field(&plain_hardware, field, bits)?,
+                ..base.clone()
+            };
+            let frame = frame_of(&point)?.frame;
             image.push(ImagePoint {
                 field: field.to_string(),
                 bits,
-                comparison: compare(
-                    &frame.pixels,
-                    &reference.pixels,
-                    camera.width,
-                    camera.height,
-                )?,
+                comparison: compare(&frame.pixels, &reference.frame.pixels, width, height)?,
             });
         }
     }
     let mut cost = Vec::new();
-    let leaping = Leaping::Occupancy {
-        subcube: LEAP_SUBCUBE.min(*volume.dims.iter().max().unwrap_or(&2)),
-        hierarchy: false,
-        kind: OccupancyKind::Class,
-    };
-    let mut roomy = base.clone();
+    let mut roomy = plain_hardware.clone();
     roomy.occupancy.sram_bits = roomy.occupancy.sram_bits.max(1 << 24);
-    let plain = FixedRenderer::new(volume, tf, settings, &roomy, Leaping::None)?.render(camera);
+    let plain = frame_of(&RunDescription {
+        model: Model::Step,
+        hardware: roomy.clone(),
+        ..base.clone()
+    })?;
+    let mut leaping = roomy.clone();
+    leaping.occupancy.subcube = LEAP_SUBCUBE.min(*volume.dims.iter().max().unwrap_or(&2));
+    leaping.occupancy.kind = OccupancyKind::Class;
     for (field, range) in COST_AXES {
         for bits in range.clone() {
             if field.ends_with("distance_frac_bits") && bits > roomy.ray.position_frac_bits {
                 continue;
             }
-            let config = with_field(&roomy, field, bits)?;
-            let frame = FixedRenderer::new(volume, tf, settings, &config, leaping)?.render(camera);
-            let stats = frame.stats();
+            let report = frame_of(&RunDescription {
+                model: Model::Step,
+                hardware: with_field(&leaping, field, bits)?,
+                ..base.clone()
+            })?;
             cost.push(CostPoint {
                 field: field.to_string(),
                 bits,
-                steps: stats.steps(),
-                leaps: stats.leaps,
-                image_identical_to_no_leaping: frame.pixels == plain.pixels,
+                steps: report.measurements.steps,
+                leaps: report.measurements.leaps,
+                image_identical_to_no_leaping: report.frame.pixels == plain.frame.pixels,
             });
         }
     }
     Ok(PrecisionReport {
         dataset: volume.name.clone(),
-        transfer_function: tf.name.clone(),
+        transfer_function: reference.transfer_function,
         image,
         cost,
     })

@@ -384,7 +384,7 @@ fn sim_writes_the_statistics_architects_need() {
     ] {
         assert!(s["pipeline"]["stall_cycles"][cause].is_u64(), "{cause}");
     }
-    assert_eq!(s["hardware"]["skip"]["latency"], 8);
+    assert_eq!(s["run"]["hardware"]["skip"]["latency"], 8);
     assert!(png.is_file());
 }
 

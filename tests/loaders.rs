@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use flate2::write::GzEncoder;
 use flate2::Compression;
 use proptest::prelude::*;
+use vizsim::volume::descriptor;
 use vizsim::volume::raw::{self, RawFileName};
 use vizsim::volume::{nrrd, Volume, MAX_DIM};
 use vizsim::Error;
@@ -318,7 +319,7 @@ fn descriptor_raw_with_defaults_from_file_name() {
     let values = pattern(4 * 3 * 2, 256);
     dir.write("blob_4x3x2_uint8.raw", &bytes_u8(&values));
     let path = dir.write("blob.toml", b"file = \"blob_4x3x2_uint8.raw\"\n");
-    let volume = raw::load_descriptor(&path).unwrap();
+    let volume = descriptor::load_descriptor(&path).unwrap();
     assert_volume(&volume, "blob", [4, 3, 2], 8, &values);
     assert_eq!(volume.spacing, [1.0; 3]);
 }
@@ -340,7 +341,7 @@ endian = "big"
 spacing = [0.5, 0.5, 2.0]
 "#,
     );
-    let volume = raw::load_descriptor(&path).unwrap();
+    let volume = descriptor::load_descriptor(&path).unwrap();
     assert_volume(&volume, "scan", [3, 3, 2], 16, &values);
     assert_eq!(volume.spacing, [0.5, 0.5, 2.0]);
 }
@@ -352,7 +353,7 @@ fn descriptor_rejects_unknown_field() {
         "d.toml",
         b"file = \"a_2x2x2_uint8.raw\"\nspacingz = [1, 1, 1]\n",
     );
-    let message = error_text(raw::load_descriptor(&path));
+    let message = error_text(descriptor::load_descriptor(&path));
     assert!(message.contains("d.toml"), "{message}");
     assert!(message.contains("spacingz"), "{message}");
 }
@@ -373,7 +374,7 @@ fn descriptor_rejects_out_of_range_values() {
     ] {
         let text = format!("file = \"a_2x2x2_uint8.raw\"\n{body}\n");
         let path = dir.write("d.toml", text.as_bytes());
-        let error = raw::load_descriptor(&path).expect_err(body);
+        let error = descriptor::load_descriptor(&path).expect_err(body);
         assert!(
             matches!(&error, Error::Config { field: f, .. } if f == field),
             "{body}: {error}"
@@ -390,14 +391,14 @@ fn descriptor_rejects_out_of_range_values() {
 fn descriptor_type_errors_name_the_field() {
     let dir = TempDir::new("desctype");
     let path = dir.write("d.toml", b"file = \"a.raw\"\ndims = [2, 2]\n");
-    let message = error_text(raw::load_descriptor(&path));
+    let message = error_text(descriptor::load_descriptor(&path));
     assert!(
         message.contains("d.toml") && message.contains("dims"),
         "{message}"
     );
 
     let path = dir.write("d.toml", b"dims = [2, 2, 2]\n");
-    let message = error_text(raw::load_descriptor(&path));
+    let message = error_text(descriptor::load_descriptor(&path));
     assert!(message.contains("file"), "{message}");
 }
 
@@ -406,17 +407,17 @@ fn descriptor_needs_dims_unless_file_name_gives_them() {
     let dir = TempDir::new("descdims");
     dir.write("plain.raw", &[0u8; 8]);
     let path = dir.write("d.toml", b"file = \"plain.raw\"\n");
-    let error = raw::load_descriptor(&path).unwrap_err();
+    let error = descriptor::load_descriptor(&path).unwrap_err();
     assert!(
         matches!(&error, Error::Config { field, .. } if field == "dims"),
         "{error}"
     );
 
     let path = dir.write("d.toml", b"file = \"plain.raw\"\ndims = [2, 2, 2]\n");
-    assert_eq!(raw::load_descriptor(&path).unwrap().dims, [2, 2, 2]);
+    assert_eq!(descriptor::load_descriptor(&path).unwrap().dims, [2, 2, 2]);
 
     let path = dir.write("d.toml", b"file = \"plain.vol\"\ndims = [2, 2, 2]\n");
-    let error = raw::load_descriptor(&path).unwrap_err();
+    let error = descriptor::load_descriptor(&path).unwrap_err();
     assert!(
         matches!(&error, Error::Config { field, .. } if field == "file"),
         "{error}"
@@ -435,12 +436,12 @@ fn descriptor_delegates_to_nrrd() {
     ];
     dir.write("vol.nrrd", &nrrd_file(&header, &bytes_u8(&values)));
     let path = dir.write("named.toml", b"file = \"vol.nrrd\"\nspacing = [1, 1, 3]\n");
-    let volume = raw::load_descriptor(&path).unwrap();
+    let volume = descriptor::load_descriptor(&path).unwrap();
     assert_volume(&volume, "named", [2, 2, 3], 8, &values);
     assert_eq!(volume.spacing, [1.0, 1.0, 3.0]);
 
     let path = dir.write("d.toml", b"file = \"vol.nrrd\"\ndims = [2, 2, 3]\n");
-    let error = raw::load_descriptor(&path).unwrap_err();
+    let error = descriptor::load_descriptor(&path).unwrap_err();
     assert!(
         matches!(&error, Error::Config { field, .. } if field == "dims"),
         "{error}"
@@ -817,7 +818,7 @@ proptest! {
             &nrrd_file(&["type: uchar", "dimension: 3", "sizes: 2 2 2", "encoding: raw"], &[1u8; 8]),
         );
         let path = dir.write("d.toml", &text);
-        let _ = raw::load_descriptor(&path);
+        let _ = descriptor::load_descriptor(&path);
     }
 
     #[test]

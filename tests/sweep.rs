@@ -64,7 +64,7 @@ fn expansion_is_the_product_with_zip_and_exclusions() {
     assert!(e
         .runs
         .iter()
-        .all(|r| r.config.ray_queue.rays == 8 || r.config.ray_queue.rays == 16));
+        .all(|r| r.run.hardware.ray_queue.rays == 8 || r.run.hardware.ray_queue.rays == 16));
 
     let zipped = TINY.replace(
         "\"ray_queue.rays\" = [8, 16]",
@@ -79,8 +79,8 @@ fn expansion_is_the_product_with_zip_and_exclusions() {
     let e = expand(&zipped, "z", None).unwrap();
     assert_eq!(e.runs.len(), 2 * 2 * 3 * 2 * 2 * 3);
     assert!(e.runs.iter().all(
-        |r| (r.config.ray_queue.rays, r.config.skip.latency) == (8, 4)
-            || (r.config.ray_queue.rays, r.config.skip.latency) == (16, 8)
+        |r| (r.run.hardware.ray_queue.rays, r.run.hardware.skip.latency) == (8, 4)
+            || (r.run.hardware.ray_queue.rays, r.run.hardware.skip.latency) == (16, 8)
     ));
 
     let excluded = format!(
@@ -92,7 +92,7 @@ fn expansion_is_the_product_with_zip_and_exclusions() {
     assert!(!e
         .runs
         .iter()
-        .any(|r| r.model == Model::Cycle && r.config.ray_queue.rays == 8));
+        .any(|r| r.run.model == Model::Cycle && r.run.hardware.ray_queue.rays == 8));
 }
 
 #[test]

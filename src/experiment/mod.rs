@@ -16,14 +16,8 @@ use std::time::Instant;
 use rayon::prelude::*;
 use serde_json::{json, Value};
 
-use crate::arch::pipeline::simulate;
-use crate::arch::sdram_module::SdramMemory;
-use crate::arch::voxel_memory::VoxelMemory;
-use crate::camera::{Camera, View};
 use crate::error::{Error, Result};
-use crate::functional::renderer::{FixedRenderer, Leaping};
-use crate::render::RenderSettings;
-use crate::transfer;
+use crate::run::{self, Prepared, Probes};
 use spec::{dataset_label, Expansion, Model, RunSpec};
 use store::ResultStore;
 
@@ -53,125 +47,38 @@ impl Shard {
     }
 }
 
-/// Runs of one frame group share the renderer (occupancy map, tables): built once.
-fn renderer_for<'v>(
-    run: &RunSpec,
-    volume: &'v crate::volume::Volume,
-) -> Result<(FixedRenderer<'v>, String)> {
-    let tf = transfer::resolve(&run.tf, &volume.name)?;
-    let config = &run.config;
-    let settings = RenderSettings {
-        ert_threshold: config.ert_threshold(),
-        ..RenderSettings::default()
-    };
-    let renderer =
-        FixedRenderer::new(volume, &tf, &settings, config, Leaping::from_config(config))?;
-    Ok((renderer, tf.name))
-}
-
-/// Runs one frame and returns its result line.
-fn run_frame(
-    run: &RunSpec,
-    renderer: &FixedRenderer,
-    tf_name: &str,
-    experiment: &str,
-    volume: &crate::volume::Volume,
-) -> Result<Value> {
-    let config = &run.config;
-    let camera = Camera::for_volume(
-        glam::Vec3::from(volume.extent()),
-        View::parse(&run.view)?,
-        run.projection,
-        run.size.0,
-        run.size.1,
-    )?;
-    let (label, stand_in) = dataset_label(&run.dataset);
+/// Runs one frame of a prepared group through the one run path and returns its result line:
+/// where the run sits in the experiment, then the run's measurements.
+fn run_frame(run: &RunSpec, prepared: &Prepared, experiment: &str) -> Result<Value> {
+    let report = run::execute(&run.run, prepared, Probes::default())?;
+    let desc = &run.run;
+    let (label, stand_in) = dataset_label(&desc.dataset);
     let mut line = json!({
         "key": run.key,
         "experiment": experiment,
-        "dataset": run.dataset,
+        "dataset": desc.dataset,
         "dataset_label": label,
         "stand_in": stand_in,
-        "tf": run.tf,
-        "transfer_function": tf_name,
+        "tf": desc.tf,
+        "transfer_function": report.transfer_function,
         "mode": run.mode.name(),
-        "model": run.model,
+        "model": desc.model,
         "frame": run.frame,
-        "view": run.view,
-        "width": run.size.0,
-        "height": run.size.1,
+        "view": desc.view,
+        "width": desc.size.0,
+        "height": desc.size.1,
         "axes": run.axes,
         "ert": run.mode.ert,
         "subcube": run.mode.subcube,
         "hierarchy": run.mode.hierarchy,
         "fits_default_sram": run.fits_default_sram,
-        "sram_bits": config.occupancy.sram_bits,
+        "sram_bits": desc.hardware.occupancy.sram_bits,
     });
     let obj = line.as_object_mut().expect("object");
-    if let Some(map) = &renderer.map {
-        obj.insert(
-            "skippable_subcubes_percent".into(),
-            json!(100.0 * map.empty_subcubes() as f64 / map.subcubes().max(1) as f64),
-        );
-    }
-    match run.model {
-        Model::Step => {
-            let stats = renderer.render(&camera).stats();
-            let ns = stats.steps() as f64 * config.clock.step_time_ns;
-            obj.insert("steps".into(), json!(stats.steps()));
-            obj.insert("samples".into(), json!(stats.samples));
-            obj.insert("leaps".into(), json!(stats.leaps));
-            obj.insert(
-                "rays_terminated_early".into(),
-                json!(stats.rays_terminated_early),
-            );
-            obj.insert("frame_time_ns".into(), json!(ns));
-            obj.insert("fps".into(), json!(1e9 / ns.max(1e-9)));
-        }
-        Model::Cycle => {
-            config
-                .memory
-                .check_covers(volume.dims, "hardware configuration")?;
-            let mut memory = SdramMemory::new(
-                &config.memory,
-                &config.sdram,
-                volume.dims,
-                config.clock.frequency_mhz,
-            );
-            let result = simulate(
-                renderer,
-                &camera,
-                &renderer.skipper(),
-                &mut memory,
-                config,
-                true,
-                None,
-            )?;
-            let s = &result.stats;
-            let ns = s.cycles as f64 * 1e3 / config.clock.frequency_mhz;
-            let m = memory.stats_json();
-            obj.insert("cycles".into(), json!(s.cycles));
-            obj.insert("steps".into(), json!(s.steps));
-            obj.insert("samples".into(), json!(s.samples));
-            obj.insert("leaps".into(), json!(s.leaps));
-            obj.insert(
-                "rays_terminated_early".into(),
-                json!(s.rays_terminated_early),
-            );
-            obj.insert("discarded_after_ert".into(), json!(s.discarded_after_ert));
-            obj.insert("stall_cycles".into(), json!(s.stall_cycles));
-            obj.insert("frame_time_ns".into(), json!(ns));
-            obj.insert("fps".into(), json!(1e9 / ns.max(1e-9)));
-            for field in [
-                "row_hits",
-                "row_misses",
-                "refreshes",
-                "avg_ns_per_voxel_access",
-            ] {
-                obj.insert(field.into(), m[field].clone());
-            }
-            obj.insert("page_hit_rate".into(), m["row_hit_rate"].clone());
-        }
+    if let Value::Object(measured) = serde_json::to_value(&report.measurements)
+        .map_err(|e| Error::Invalid(format!("result of run {}: {e}", run.key)))?
+    {
+        obj.extend(measured);
     }
     Ok(line)
 }
@@ -248,11 +155,11 @@ pub fn sweep(
     let name = &expansion.experiment.name;
     order.par_iter().try_for_each(|g| -> Result<()> {
         let runs = &groups[g];
-        let volume = &expansion.volumes[&runs[0].dataset];
-        let (renderer, tf_name) = renderer_for(runs[0], volume)?;
+        let volume = &expansion.volumes[&runs[0].run.dataset];
+        let prepared = run::prepare(&runs[0].run, volume)?;
         runs.par_iter().try_for_each(|run| -> Result<()> {
             let t = Instant::now();
-            let line = run_frame(run, &renderer, &tf_name, name, volume)?;
+            let line = run_frame(run, &prepared, name)?;
             let wall = t.elapsed().as_secs_f64();
             store
                 .lock()
@@ -284,7 +191,8 @@ pub fn estimate_seconds(expansion: &Expansion, runs: &[&RunSpec], threads: usize
 
 /// One run's estimated time on one core, in seconds (see `estimate_seconds`).
 fn estimated_run_seconds(expansion: &Expansion, run: &RunSpec) -> f64 {
-    let dims = expansion.volumes[&run.dataset].dims;
+    let desc = &run.run;
+    let dims = expansion.volumes[&desc.dataset].dims;
     let largest = *dims.iter().max().unwrap_or(&1) as f64;
     let factor = if run.mode.subcube > 0 {
         0.4
@@ -293,9 +201,9 @@ fn estimated_run_seconds(expansion: &Expansion, run: &RunSpec) -> f64 {
     } else {
         0.8
     };
-    let steps = run.size.0 as f64 * run.size.1 as f64 * largest * factor;
-    match run.model {
-        Model::Step => steps / 50e6,
+    let steps = desc.size.0 as f64 * desc.size.1 as f64 * largest * factor;
+    match desc.model {
+        Model::Float | Model::Step => steps / 50e6,
         Model::Cycle => steps * 1.1 / 5e6,
     }
 }

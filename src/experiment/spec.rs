@@ -13,6 +13,7 @@ use crate::camera::{parse_image_size, Projection};
 use crate::config::{self, HardwareConfig};
 use crate::error::{Error, Result};
 use crate::occupancy::SUBCUBE_SIZES;
+use crate::run::RunDescription;
 use crate::volume::{dataset, Volume};
 
 #[derive(Clone, Debug, Deserialize, Serialize)]
@@ -141,21 +142,8 @@ impl Mode {
     }
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Model {
-    Step,
-    Cycle,
-}
-
-impl Model {
-    pub fn name(self) -> &'static str {
-        match self {
-            Model::Step => "step",
-            Model::Cycle => "cycle",
-        }
-    }
-}
+/// Experiments run the step and the cycle model (`float` has no cost to sweep).
+pub use crate::run::Model;
 
 /// Datasets that stand in for unavailable published ones (brief, section 6).
 pub fn dataset_label(name: &str) -> (String, bool) {
@@ -167,33 +155,28 @@ pub fn dataset_label(name: &str) -> (String, bool) {
     }
 }
 
-/// One frame-run, fully resolved.
+/// One frame-run, fully resolved: the run itself (`run`, what `run::execute` takes) and where
+/// it sits in the experiment.
 #[derive(Clone, Debug, Serialize)]
 pub struct RunSpec {
     pub key: String,
     /// Position in the experiment's expansion (sharding uses it).
     pub index: usize,
-    pub dataset: String,
-    pub tf: String,
     pub mode: Mode,
-    pub model: Model,
     pub frame: u32,
-    pub view: String,
-    pub size: (u32, u32),
-    pub projection: Projection,
     /// Swept hardware fields: path → value.
     pub axes: BTreeMap<String, serde_json::Value>,
     pub fits_default_sram: bool,
-    pub config: HardwareConfig,
+    pub run: RunDescription,
 }
 
 impl RunSpec {
-    /// Runs that differ only in the frame share a renderer (same dataset, TF and config).
+    /// Runs that differ only in the frame share a prepared run (same dataset, TF and config).
     pub fn group(&self) -> (String, String, String) {
         (
-            self.dataset.clone(),
-            self.tf.clone(),
-            serde_json::to_string(&self.config).unwrap_or_default(),
+            self.run.dataset.clone(),
+            self.run.tf.clone(),
+            serde_json::to_string(&self.run.hardware).unwrap_or_default(),
         )
     }
 }
@@ -509,21 +492,20 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
                         }
                         for &frame in &frame_list {
                             let view = view_of(frame);
-                            let key = run_key(name, tf, model, &view, size, projection, &config);
-                            runs.push(RunSpec {
-                                key,
-                                index: runs.len(),
-                                dataset: name.clone(),
-                                tf: tf.clone(),
-                                mode: *mode,
-                                model,
-                                frame,
+                            let run = RunDescription {
                                 view,
-                                size,
                                 projection,
+                                size,
+                                ..RunDescription::new(name, tf, model, config.clone())
+                            };
+                            runs.push(RunSpec {
+                                key: run_key(&run),
+                                index: runs.len(),
+                                mode: *mode,
+                                frame,
                                 axes: axes_json.clone(),
                                 fits_default_sram: fits,
-                                config: config.clone(),
+                                run,
                             });
                         }
                     }
@@ -556,25 +538,33 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
 }
 
 /// The run's identity: a hash of everything that decides its result (not the experiment's
-/// name, so the same run in two experiments has the same key).
-pub fn run_key(
-    dataset: &str,
-    tf: &str,
-    model: Model,
-    view: &str,
-    size: (u32, u32),
-    projection: Projection,
-    config: &HardwareConfig,
-) -> String {
-    let canonical = serde_json::json!({
-        "dataset": dataset,
-        "tf": tf,
-        "model": model,
-        "view": view,
-        "size": [size.0, size.1],
-        "projection": projection,
-        "config": config,
+/// name, so the same run in two experiments has the same key). Spacing, shading and memory
+/// enter only when they differ from the defaults every experiment had before they were part
+/// of a run, so keys of earlier results stay valid.
+pub fn run_key(run: &RunDescription) -> String {
+    let mut canonical = serde_json::json!({
+        "dataset": run.dataset,
+        "tf": run.tf,
+        "model": run.model,
+        "view": run.view,
+        "size": [run.size.0, run.size.1],
+        "projection": run.projection,
+        "config": run.hardware,
     });
+    let defaults = RunDescription::new("", "", run.model, run.hardware.clone());
+    let obj = canonical.as_object_mut().expect("object");
+    if run.sample_spacing != defaults.sample_spacing {
+        obj.insert(
+            "sample_spacing".into(),
+            serde_json::json!(run.sample_spacing),
+        );
+    }
+    if run.shading != defaults.shading {
+        obj.insert("shading".into(), serde_json::json!(run.shading));
+    }
+    if run.memory != defaults.memory {
+        obj.insert("memory".into(), serde_json::json!(run.memory));
+    }
     let digest = Sha256::digest(canonical.to_string().as_bytes());
     digest[..8].iter().map(|b| format!("{b:02x}")).collect()
 }

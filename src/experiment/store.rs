@@ -177,13 +177,13 @@ impl ResultStore {
             .iter()
             .map(|r| {
                 serde_json::json!({
-                    "key": r.key, "dataset": r.dataset, "tf": r.tf, "mode": r.mode.name(),
-                    "model": r.model, "frame": r.frame, "axes": r.axes,
+                    "key": r.key, "dataset": r.run.dataset, "tf": r.run.tf, "mode": r.mode.name(),
+                    "model": r.run.model, "frame": r.frame, "axes": r.axes,
                     "fits_default_sram": r.fits_default_sram,
                 })
             })
             .collect();
-        let base = expansion.runs.first().map(|r| &r.config);
+        let base = expansion.runs.first().map(|r| &r.run.hardware);
         let resolved = serde_json::json!({
             "experiment": expansion.experiment,
             "source": expansion.source,

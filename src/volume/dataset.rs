@@ -14,7 +14,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{nrrd, phantom, raw, Volume};
+use super::{descriptor, nrrd, phantom, raw, Volume};
 use crate::error::{Error, Result};
 
 pub const DATA_DIR_ENV: &str = "VIZSIM_DATA";
@@ -144,7 +144,7 @@ pub fn load_file(path: &Path) -> Result<Volume> {
     if name.ends_with(".nrrd") || name.ends_with(".nhdr") {
         nrrd::load_nrrd(path)
     } else if name.ends_with(".toml") {
-        raw::load_descriptor(path)
+        descriptor::load_descriptor(path)
     } else if name.ends_with(".raw") {
         raw::load_raw_by_file_name(path)
     } else {

@@ -6,6 +6,7 @@
 //! [0, Z-1]: every sample inside it has its whole trilinear neighbourhood inside the volume.
 
 pub mod dataset;
+pub mod descriptor;
 pub mod nrrd;
 pub mod phantom;
 pub mod raw;

@@ -1,0 +1,196 @@
+//! `vizsim demo`: the main job on the embedded default: orbits and a gallery of the phantoms
+//! and the datasets present, and the quick experiment's sweep, tables and charts.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Result;
+use clap::Args;
+use vizsim::config::HardwareConfig;
+use vizsim::run::{self, Model, Probes, RunDescription};
+use vizsim::volume::dataset;
+
+use super::DataArgs;
+
+#[derive(Args)]
+pub struct DemoArgs {
+    #[command(flatten)]
+    data: DataArgs,
+    /// Output folder.
+    #[arg(long, default_value = "reports/demo")]
+    out: PathBuf,
+    /// Frames of the orbit (the published animation has 72, 5 degrees each).
+    #[arg(long, default_value_t = 72)]
+    frames: u32,
+}
+
+/// Orbits of a phantom (and of fuel when the data folder holds it) as contact sheets, and a
+/// front-and-side gallery of every dataset with both of its transfer functions, all rendered
+/// by the float reference through the one run path.
+pub fn run(args: DemoArgs) -> Result<()> {
+    let (out, frames) = (args.out.as_path(), args.frames);
+    anyhow::ensure!(frames >= 1, "--frames must be at least 1");
+    let dir = args.data.dir()?;
+    let mut orbit_sets = vec!["phantom:metaballs:64".to_string()];
+    let mut gallery: Vec<String> = vizsim::volume::phantom::PhantomKind::ALL
+        .iter()
+        .map(|k| format!("phantom:{}:64", k.name()))
+        .collect();
+    match &dir {
+        Some(d) if d.is_dir() => {
+            let present = dataset::scan(d)?;
+            if present.iter().any(|e| e.name == "fuel") {
+                orbit_sets.push("fuel".into());
+            } else {
+                println!("{}: no fuel, so no fuel orbit", d.display());
+            }
+            if present.is_empty() {
+                println!("{}: no datasets found, phantoms only", d.display());
+            }
+            gallery.extend(present.into_iter().map(|e| e.name));
+        }
+        _ => {
+            println!("no data directory (--data-dir / VIZSIM_DATA / ../shared/data): phantoms only")
+        }
+    }
+    let hardware = HardwareConfig::default_config();
+    for spec in &orbit_sets {
+        let volume = dataset::load(spec, dir.as_deref())?;
+        let base = RunDescription {
+            size: (128, 128),
+            ..RunDescription::new(spec, "class", Model::Float, hardware.clone())
+        };
+        let prepared = run::prepare(&base, &volume)?;
+        let start = Instant::now();
+        let mut images = Vec::new();
+        for k in 0..frames {
+            let view = RunDescription {
+                view: format!("orbit:{k}/{frames}"),
+                ..base.clone()
+            };
+            images.push(run::execute(&view, &prepared, Probes::default())?.frame);
+        }
+        let step = (frames / 12).max(1) as usize;
+        let picked: Vec<&vizsim::render::Frame> = images.iter().step_by(step).take(12).collect();
+        let path = out.join(format!("orbit-{}.png", file_safe(&volume.name)));
+        write_contact_sheet(&picked, 6, &path)?;
+        println!(
+            "{}: {frames}-frame orbit in {:.2} s -> {}",
+            volume.name,
+            start.elapsed().as_secs_f64(),
+            path.display()
+        );
+    }
+    for spec in &gallery {
+        let volume = dataset::load(spec, dir.as_deref())?;
+        let mut row = Vec::new();
+        for kind in ["zero", "class"] {
+            let base = RunDescription::new(spec, kind, Model::Float, hardware.clone());
+            let prepared = run::prepare(&base, &volume)?;
+            for view in ["front", "orbit:1/4"] {
+                let desc = RunDescription {
+                    view: view.into(),
+                    ..base.clone()
+                };
+                row.push(run::execute(&desc, &prepared, Probes::default())?.frame);
+            }
+        }
+        let path = out.join(format!("gallery-{}.png", file_safe(&volume.name)));
+        write_contact_sheet(&row.iter().collect::<Vec<_>>(), 4, &path)?;
+        println!(
+            "{}: zero | class, front and side -> {}",
+            volume.name,
+            path.display()
+        );
+    }
+    quick_experiment(dir.as_deref(), &out.join("quick"))
+}
+
+/// The quick experiment (configs/experiments/quick.toml, embedded): sweep, tables and charts.
+/// Without the data folder its real datasets are left out.
+fn quick_experiment(data_dir: Option<&Path>, out: &Path) -> Result<()> {
+    use vizsim::experiment::{self, spec};
+    const QUICK: &str = include_str!("../../configs/experiments/quick.toml");
+    let mut file: spec::ExperimentFile = toml::from_str(QUICK)?;
+    file.datasets.retain(|d| {
+        let present = dataset::load(d, data_dir).is_ok();
+        if !present {
+            println!("quick experiment: {d} is not there, left out");
+        }
+        present
+    });
+    let expansion = spec::expand(
+        &toml::to_string(&file)?,
+        "configs/experiments/quick.toml",
+        data_dir,
+    )?;
+    let summary = experiment::sweep(&expansion, out, None, false)?;
+    println!(
+        "quick experiment: {} runs in {:.1} s -> {}",
+        summary.total,
+        summary.wall_seconds,
+        out.display()
+    );
+    let results = super::results::ResultsArgs {
+        dir: out.to_path_buf(),
+        frame_step: 1,
+        model: None,
+    };
+    super::results::write_tables(
+        &results,
+        &[],
+        &["dataset".to_string(), "tf".to_string()],
+        "mode",
+        None,
+    )?;
+    let lines = results.read()?;
+    let charts = vizsim::figures::write_all(&lines, &out.join("plots"))?;
+    println!("{charts} charts -> {}", out.join("plots").display());
+    Ok(())
+}
+
+fn file_safe(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '-'
+            }
+        })
+        .collect()
+}
+
+/// Tiles frames of equal size into one PNG, `columns` per row.
+fn write_contact_sheet(
+    frames: &[&vizsim::render::Frame],
+    columns: usize,
+    path: &Path,
+) -> Result<()> {
+    let Some(first) = frames.first() else {
+        return Ok(());
+    };
+    let (w, h) = (first.width, first.height);
+    let rows = frames.len().div_ceil(columns) as u32;
+    let cols = columns.min(frames.len()) as u32;
+    let sheet = vizsim::render::Frame {
+        width: w * cols,
+        height: h * rows,
+        pixels: {
+            let mut pixels = vec![[0u8, 0, 0, 255]; (w * cols * h * rows) as usize];
+            for (i, f) in frames.iter().enumerate() {
+                let (ox, oy) = ((i as u32 % cols) * w, (i as u32 / cols) * h);
+                for y in 0..h {
+                    for x in 0..w {
+                        pixels[((oy + y) * w * cols + ox + x) as usize] =
+                            f.pixels[(y * w + x) as usize];
+                    }
+                }
+            }
+            pixels
+        },
+        rays: Vec::new(),
+    };
+    sheet.write_png(path)?;
+    Ok(())
+}

@@ -1,0 +1,282 @@
+//! The `vizsim` command line: one file per command. Commands only parse their arguments into
+//! the library's descriptions (a run is a `vizsim::run::RunDescription`) and print; library
+//! errors carry what and where, and here get the option they came from.
+
+mod compare;
+mod demo;
+mod info;
+mod occupancy;
+mod precision;
+mod render;
+mod results;
+mod sim;
+mod sweep;
+mod verify_skip;
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::{Args, Parser, Subcommand};
+use vizsim::camera::{parse_image_size, Projection};
+use vizsim::config::HardwareConfig;
+use vizsim::run::{Model, RunDescription};
+use vizsim::volume::{dataset, Volume};
+
+#[derive(Parser)]
+#[command(
+    name = "vizsim",
+    version,
+    about = "Cycle-accurate simulator of hardware volume ray casting architectures"
+)]
+pub struct Cli {
+    /// Worker threads (default: all cores). Results are identical for any count.
+    #[arg(long, global = true)]
+    threads: Option<usize>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render one frame: float reference ray caster, or the fixed-point model (--model fixed).
+    Render(render::RenderArgs),
+    /// Simulate one frame clock by clock on the cycle-accurate pipeline.
+    Sim(sim::SimArgs),
+    /// Print a dataset's dimensions, spacing, value histogram and occupied percentage.
+    Info(info::InfoArgs),
+    /// Occupancy maps per sub-cube size: storage bits, SRAM fit, skippable sub-cubes ('0', class).
+    Occupancy(occupancy::OccupancyArgs),
+    /// Compare two images: max error per channel, PSNR, pixels differing by more than 1 LSB.
+    Compare(compare::CompareArgs),
+    /// Exhaustively verify the skip calculator: every (position within a sub-cube, increment)
+    /// pair at these widths; reports overshoots (must be 0) and the worst wasted steps.
+    VerifySkip(verify_skip::VerifySkipArgs),
+    /// Sweep fixed-point widths one at a time against the float reference (image error) and the
+    /// skip widths against the step count; writes tables and plots.
+    Precision(precision::PrecisionArgs),
+    /// Run an experiment file (configs/experiments/): every run in parallel, results appended
+    /// to OUT/results.jsonl as they finish; re-running resumes.
+    Sweep(sweep::SweepArgs),
+    /// Merge sweep folders (shards) into one, results sorted by key.
+    Merge(results::MergeArgs),
+    /// Tables of a sweep's results (Markdown and CSV): rows dataset x classification, columns
+    /// the acceleration modes, cells averaged over the frames.
+    Table(results::TableArgs),
+    /// Charts of a sweep's results (PNG + SVG): cycles or steps per frame against the frame,
+    /// skippable sub-cubes and frame rate against the sub-cube size, swept fields.
+    Plot(results::PlotArgs),
+    /// Render orbits and a gallery of the phantoms and the datasets present into reports/demo/.
+    Demo(demo::DemoArgs),
+}
+
+pub fn run(cli: Cli) -> Result<()> {
+    if let Some(n) = cli.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .context("setting the thread count")?;
+    }
+    match cli.command {
+        Command::Render(args) => render::run(args),
+        Command::Sim(args) => sim::run(args),
+        Command::Info(args) => info::run(args),
+        Command::Occupancy(args) => occupancy::run(args),
+        Command::Compare(args) => compare::run(args),
+        Command::VerifySkip(args) => verify_skip::run(args),
+        Command::Precision(args) => precision::run(args),
+        Command::Sweep(args) => sweep::run(args),
+        Command::Merge(args) => results::merge(args),
+        Command::Table(args) => results::table(args),
+        Command::Plot(args) => results::plot(args),
+        Command::Demo(args) => demo::run(args),
+    }
+}
+
+#[derive(Args, Clone)]
+pub struct DataArgs {
+    /// Folder holding the real datasets (env VIZSIM_DATA; default ../shared/data when present).
+    #[arg(long)]
+    pub data_dir: Option<PathBuf>,
+}
+
+impl DataArgs {
+    /// The data folder: `--data-dir` (which must exist), else `VIZSIM_DATA`, else
+    /// `../shared/data` when present.
+    pub fn dir(&self) -> Result<Option<PathBuf>> {
+        if let Some(dir) = &self.data_dir {
+            anyhow::ensure!(dir.is_dir(), "--data-dir {}: no such folder", dir.display());
+        }
+        Ok(dataset::data_dir(self.data_dir.as_deref()))
+    }
+
+    pub fn load(&self, spec: &str) -> Result<Volume> {
+        Ok(dataset::load(spec, self.dir()?.as_deref())?)
+    }
+}
+
+/// What defines a frame: dataset, transfer function, view and sampling.
+#[derive(Args)]
+pub struct FrameArgs {
+    /// Dataset: a name in the data folder (fuel, neghip, aneurism...), phantom:KIND[:SIZE], or a file.
+    #[arg(long)]
+    pub dataset: String,
+    #[command(flatten)]
+    pub data: DataArgs,
+    /// Transfer function: `zero`, `class` (the dataset's own), a preset name, or a TOML file.
+    #[arg(long, default_value = "class")]
+    pub tf: String,
+    /// `front` or `orbit:K/N` (frame K of an N-frame orbit about the vertical axis).
+    #[arg(long, default_value = "front")]
+    pub view: String,
+    #[arg(long, value_enum, default_value = "ortho")]
+    pub projection: ProjectionArg,
+    /// Image size WxH.
+    #[arg(long, default_value = "256x256")]
+    pub size: String,
+    /// Sample spacing along the ray, in voxels.
+    #[arg(long, default_value_t = 1.0)]
+    pub spacing: f32,
+    /// Disable early ray termination (the same as --set compositing.ert=false).
+    #[arg(long)]
+    pub no_ert: bool,
+    /// Phong shading from per-voxel gradients.
+    #[arg(long)]
+    pub shading: bool,
+}
+
+impl FrameArgs {
+    /// The run these arguments and `hardware` describe, for `model`.
+    pub fn describe(&self, model: Model, hardware: &HardwareArgs) -> Result<RunDescription> {
+        let mut extra = Vec::new();
+        if self.no_ert {
+            extra.push("compositing.ert=false".to_string());
+        }
+        let config = hardware.load(&extra)?;
+        let run = RunDescription {
+            view: self.view.clone(),
+            projection: self.projection.into(),
+            size: parse_image_size(&self.size).context("--size")?,
+            sample_spacing: self.spacing,
+            shading: self.shading,
+            ..RunDescription::new(&self.dataset, &self.tf, model, config)
+        };
+        run.validate()?;
+        Ok(run)
+    }
+}
+
+#[derive(Args, Clone)]
+pub struct HardwareArgs {
+    /// Hardware configuration TOML (default: the embedded, calibrated configs/hardware/vizard2.toml).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Override a configuration field, validated like the file: --set skip.reciprocal_bits=6.
+    #[arg(long = "set", value_name = "FIELD=VALUE")]
+    pub overrides: Vec<String>,
+    /// Space leaping with sub-cubes of this edge (2..64); without it, no leaping.
+    #[arg(long)]
+    pub subcube: Option<usize>,
+    /// Two-level occupancy hierarchy (2x2x2 sub-cubes per byte).
+    #[arg(long)]
+    pub hierarchy: bool,
+    /// Which occupancy map: '0' (`zero`) or `class`.
+    #[arg(long, value_enum)]
+    pub occupancy: Option<OccupancyArg>,
+}
+
+impl HardwareArgs {
+    /// The configuration file with --set, then the leaping flags and `extra` applied as
+    /// overrides too, so every value goes through the same validation.
+    pub fn load(&self, extra: &[String]) -> Result<HardwareConfig> {
+        let mut overrides = self.overrides.clone();
+        if let Some(s) = self.subcube {
+            overrides.push(format!("occupancy.subcube={s}"));
+        }
+        if self.hierarchy {
+            overrides.push("occupancy.hierarchy=true".into());
+        }
+        if let Some(kind) = self.occupancy {
+            overrides.push(format!("occupancy.kind={}", kind.toml_name()));
+        }
+        overrides.extend(extra.iter().cloned());
+        let config = HardwareConfig::load(self.config.as_deref(), &overrides);
+        match &self.config {
+            Some(path) => Ok(config.with_context(|| format!("--config {}", path.display()))?),
+            None => Ok(config?),
+        }
+    }
+
+    /// Whether any leaping flag was given.
+    pub fn asks_for_leaping(&self) -> bool {
+        self.subcube.is_some() || self.hierarchy || self.occupancy.is_some()
+    }
+
+    /// One line saying what the configuration resolved to: the preset and every field that
+    /// differs from the calibrated default.
+    pub fn resolved_line(&self, config: &HardwareConfig) -> String {
+        let source = match &self.config {
+            Some(p) => p.display().to_string(),
+            None => format!("{} (embedded, calibrated)", vizsim::config::DEFAULT_NAME),
+        };
+        let changed = config.differences_from_default();
+        if changed.is_empty() {
+            format!("hardware: {source}, no field changed")
+        } else {
+            format!(
+                "hardware: {source}; differs from the default in {}",
+                changed.join(", ")
+            )
+        }
+    }
+}
+
+#[derive(clap::ValueEnum, Clone, Copy)]
+pub enum OccupancyArg {
+    Zero,
+    Class,
+}
+
+impl OccupancyArg {
+    fn toml_name(self) -> &'static str {
+        match self {
+            OccupancyArg::Zero => "\"zero\"",
+            OccupancyArg::Class => "\"class\"",
+        }
+    }
+}
+
+#[derive(clap::ValueEnum, Clone, Copy)]
+pub enum ProjectionArg {
+    Ortho,
+    Persp,
+}
+
+impl From<ProjectionArg> for Projection {
+    fn from(p: ProjectionArg) -> Self {
+        match p {
+            ProjectionArg::Ortho => Projection::Ortho,
+            ProjectionArg::Persp => Projection::Persp,
+        }
+    }
+}
+
+/// Leaping as a user reads it: `none`, or `8³ class map`, `8³ '0' map + hierarchy`.
+pub fn leaping_text(leaping: &vizsim::functional::renderer::Leaping) -> String {
+    use vizsim::functional::renderer::Leaping;
+    use vizsim::occupancy::OccupancyKind;
+    match leaping {
+        Leaping::None => "no leaping".into(),
+        Leaping::Occupancy {
+            subcube,
+            hierarchy,
+            kind,
+        } => format!(
+            "leaping {subcube}³ {} map{}",
+            match kind {
+                OccupancyKind::Zero => "'0'",
+                OccupancyKind::Class => "class",
+            },
+            if *hierarchy { " + hierarchy" } else { "" }
+        ),
+    }
+}

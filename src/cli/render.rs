@@ -1,0 +1,79 @@
+//! `vizsim render`: one frame with the float reference or the functional fixed-point model.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+use vizsim::run::{self, Model, Probes};
+
+use super::{leaping_text, FrameArgs, HardwareArgs};
+
+#[derive(Args)]
+pub struct RenderArgs {
+    #[command(flatten)]
+    frame: FrameArgs,
+    /// Output PNG.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Also write the run and its statistics as JSON.
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Also write one CSV row per ray: samples, leaps, where it entered and left, ERT.
+    #[arg(long)]
+    rays: Option<PathBuf>,
+    /// `float`: the reference ray caster; `fixed` (or `step`): the functional fixed-point
+    /// model, which counts steps. Both take ERT and sampling from the hardware configuration;
+    /// leaping applies to `fixed`.
+    #[arg(long, value_enum, default_value = "float")]
+    model: RenderModel,
+    #[command(flatten)]
+    hardware: HardwareArgs,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, PartialEq, Eq)]
+enum RenderModel {
+    Float,
+    #[value(alias = "step")]
+    Fixed,
+}
+
+pub fn run(args: RenderArgs) -> Result<()> {
+    let model = match args.model {
+        RenderModel::Float => Model::Float,
+        RenderModel::Fixed => Model::Step,
+    };
+    anyhow::ensure!(
+        model != Model::Float || !args.hardware.asks_for_leaping(),
+        "--subcube, --hierarchy and --occupancy apply to --model fixed (the float reference takes every sample)"
+    );
+    let desc = args.frame.describe(model, &args.hardware)?;
+    println!("{}", args.hardware.resolved_line(&desc.hardware));
+    let report = run::run(&desc, args.frame.data.dir()?.as_deref(), Probes::default())?;
+    report.frame.write_png(&args.output)?;
+    if let Some(path) = &args.rays {
+        report.frame.write_rays_csv(path)?;
+    }
+    let stats = &report.stats;
+    let m = &report.measurements;
+    println!(
+        "{} ({} model, {}): {} rays, {} hit, {} samples, {} leaps, {} terminated early{}, {:.3} s ({:.1} M samples/s) -> {}",
+        report.volume,
+        model.name(),
+        leaping_text(&report.leaping),
+        stats.rays,
+        stats.rays_hit,
+        m.samples,
+        m.leaps,
+        m.rays_terminated_early,
+        m.frame_time_ns
+            .map(|t| format!(", {} steps = {:.3} ms/frame = {:.1} fps", m.steps, t / 1e6, 1e9 / t))
+            .unwrap_or_default(),
+        report.wall_seconds,
+        report.samples_per_second / 1e6,
+        args.output.display()
+    );
+    if let Some(json) = &args.json {
+        vizsim::output::write_json(json, &report)?;
+    }
+    Ok(())
+}

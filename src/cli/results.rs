@@ -1,0 +1,182 @@
+//! `vizsim merge`, `table` and `plot`: what a sweep's results folder turns into.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Result;
+use clap::Args;
+
+#[derive(Args)]
+pub struct MergeArgs {
+    /// Sweep folders.
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+    #[arg(long)]
+    out: PathBuf,
+}
+
+pub fn merge(args: MergeArgs) -> Result<()> {
+    let inputs: Vec<&Path> = args.inputs.iter().map(PathBuf::as_path).collect();
+    let n = vizsim::experiment::merge(&inputs, &args.out)?;
+    println!("{n} runs -> {}", args.out.join("results.jsonl").display());
+    Ok(())
+}
+
+#[derive(Args)]
+pub struct TableArgs {
+    #[command(flatten)]
+    results: ResultsArgs,
+    /// Metrics (one table each per model; default fps, cycles, steps, page-hits).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    metric: Vec<vizsim::tables::Metric>,
+    /// Row fields, comma-separated: dataset, tf, mode, model, frame or a swept field path.
+    #[arg(long, default_value = "dataset,tf", value_delimiter = ',')]
+    rows: Vec<String>,
+    /// Column field.
+    #[arg(long, default_value = "mode")]
+    columns: String,
+    /// Output folder (default DIR/tables).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct PlotArgs {
+    #[command(flatten)]
+    results: ResultsArgs,
+    /// Output folder (default DIR/plots).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+pub fn plot(args: PlotArgs) -> Result<()> {
+    let out = args.out.unwrap_or_else(|| args.results.dir.join("plots"));
+    let lines = args.results.read()?;
+    let written = vizsim::figures::write_all(&lines, &out)?;
+    println!("{written} charts -> {}", out.display());
+    Ok(())
+}
+
+/// The sweep results a `table` or `plot` reads: a sweep folder's results, keeping frames that
+/// are multiples of `frame_step` (and one model's when given).
+#[derive(Args)]
+pub struct ResultsArgs {
+    /// Sweep folder (holding results.jsonl).
+    pub dir: PathBuf,
+    /// Use only frames that are multiples of this (e.g. 2: every other frame).
+    #[arg(long, default_value_t = 1)]
+    pub frame_step: u64,
+    /// Only this model's results (`step` or `cycle`).
+    #[arg(long)]
+    pub model: Option<String>,
+}
+
+impl ResultsArgs {
+    pub fn read(&self) -> Result<Vec<serde_json::Value>> {
+        anyhow::ensure!(self.frame_step >= 1, "--frame-step must be at least 1");
+        if let Some(m) = &self.model {
+            anyhow::ensure!(
+                m == "step" || m == "cycle",
+                "--model {m}: expected `step` or `cycle`"
+            );
+        }
+        let mut lines = vizsim::tables::read_results(&self.dir.join("results.jsonl"))?;
+        lines.retain(|l| {
+            let frame_kept = l
+                .get("frame")
+                .and_then(|f| f.as_u64())
+                .is_none_or(|f| f % self.frame_step == 0);
+            let model_kept = self
+                .model
+                .as_deref()
+                .is_none_or(|m| l.get("model").and_then(|v| v.as_str()) == Some(m));
+            frame_kept && model_kept
+        });
+        Ok(lines)
+    }
+}
+
+pub fn table(args: TableArgs) -> Result<()> {
+    write_tables(
+        &args.results,
+        &args.metric,
+        &args.rows,
+        &args.columns,
+        args.out.as_deref(),
+    )
+}
+
+/// Writes the tables of `results` (one per model and metric) and prints the fps tables.
+pub fn write_tables(
+    results: &ResultsArgs,
+    metrics: &[vizsim::tables::Metric],
+    rows: &[String],
+    columns: &str,
+    out: Option<&Path>,
+) -> Result<()> {
+    use vizsim::tables::{self, Metric};
+    let dir = &results.dir;
+    let lines = results.read()?;
+    anyhow::ensure!(!lines.is_empty(), "{}: no results", dir.display());
+    let out = out
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| dir.join("tables"));
+    let metrics = if metrics.is_empty() {
+        vec![Metric::Fps, Metric::Cycles, Metric::Steps, Metric::PageHits]
+    } else {
+        metrics.to_vec()
+    };
+    let mut all_markdown = String::new();
+    for model in ["step", "cycle"] {
+        let of_model: Vec<&serde_json::Value> = lines
+            .iter()
+            .filter(|l| l.get("model").and_then(|m| m.as_str()) == Some(model))
+            .collect();
+        if of_model.is_empty() {
+            continue;
+        }
+        for &metric in &metrics {
+            if !of_model.iter().any(|l| metric.value(l).is_some()) {
+                continue;
+            }
+            let clock = match model {
+                "step" => "step model, published cost 12.5 ns per step",
+                _ => "cycle-accurate model at its clock",
+            };
+            let frames: std::collections::BTreeSet<u64> = of_model
+                .iter()
+                .filter_map(|l| l.get("frame").and_then(|f| f.as_u64()))
+                .collect();
+            let title = format!(
+                "{} ({clock}), mean over {} frame{}",
+                metric.label(),
+                frames.len(),
+                if frames.len() == 1 { "" } else { "s" }
+            );
+            let rows_here: Vec<String> = rows.iter().filter(|r| *r != "model").cloned().collect();
+            let table = tables::build(&of_model, metric, &rows_here, columns, title)?;
+            let stem = out.join(format!("{model}-{}", metric.file_name()));
+            let md = table.markdown();
+            vizsim::output::write_atomically(&stem.with_extension("md"), |w| {
+                std::io::Write::write_all(w, md.as_bytes())
+            })?;
+            let csv = table.csv();
+            vizsim::output::write_atomically(&stem.with_extension("csv"), |w| {
+                std::io::Write::write_all(w, csv.as_bytes())
+            })?;
+            if metric == Metric::Fps {
+                println!("{md}");
+            }
+            all_markdown += &md;
+            all_markdown += "\n";
+        }
+    }
+    let summary = match &results.model {
+        Some(m) => format!("tables-{m}.md"),
+        None => "tables.md".to_string(),
+    };
+    vizsim::output::write_atomically(&out.join(summary), |w| {
+        std::io::Write::write_all(w, all_markdown.as_bytes())
+    })?;
+    println!("tables -> {}", out.display());
+    Ok(())
+}

@@ -1,0 +1,115 @@
+//! `vizsim sim`: one frame clock by clock on the cycle-accurate pipeline.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+use vizsim::run::{self, Memory, Model, Probes};
+
+use super::{leaping_text, FrameArgs, HardwareArgs};
+
+#[derive(Args)]
+pub struct SimArgs {
+    #[command(flatten)]
+    frame: FrameArgs,
+    /// Voxel memory model: `sdram` (modules, banks, FIFOs, overtaking) or `ideal` (fixed
+    /// latency, unlimited bandwidth: the bound with free memory).
+    #[arg(long, value_enum, default_value = "sdram")]
+    memory: MemoryArg,
+    /// Write a VCD waveform (GTKWave, Surfer) of the cycles given by --vcd-cycles.
+    #[arg(long)]
+    vcd: Option<PathBuf>,
+    /// Cycle window of the waveform, A..B.
+    #[arg(long, default_value = "0..10000")]
+    vcd_cycles: String,
+    /// Latency of the ideal memory, in cycles (1..=1048576).
+    #[arg(long, default_value_t = 6)]
+    ideal_latency: u64,
+    #[command(flatten)]
+    hardware: HardwareArgs,
+    /// Output PNG.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// The run and its statistics as JSON.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy)]
+enum MemoryArg {
+    Sdram,
+    Ideal,
+}
+
+pub fn run(args: SimArgs) -> Result<()> {
+    let mut desc = args.frame.describe(Model::Cycle, &args.hardware)?;
+    desc.memory = match args.memory {
+        MemoryArg::Sdram => Memory::Sdram,
+        MemoryArg::Ideal => Memory::Ideal {
+            latency: args.ideal_latency,
+        },
+    };
+    desc.validate()?;
+    let config = &desc.hardware;
+    println!("{}", args.hardware.resolved_line(config));
+    let mut waveform = match &args.vcd {
+        Some(path) => Some(vizsim::arch::trace::Waveform::create(
+            path,
+            config.memory.modules(),
+            vizsim::arch::trace::parse_window(&args.vcd_cycles)?,
+        )?),
+        None => None,
+    };
+    let probes = Probes {
+        waveform: waveform.as_mut(),
+    };
+    let report = run::run(&desc, args.frame.data.dir()?.as_deref(), probes)?;
+    if let Some(w) = waveform {
+        w.finish()?;
+    }
+    let m = &report.measurements;
+    let s = report
+        .pipeline
+        .as_ref()
+        .expect("the cycle model reports its pipeline");
+    let stalls = m.stall_cycles.unwrap_or_default();
+    let cycles = m.cycles.unwrap_or_default();
+    let frame_time_ns = m.frame_time_ns.unwrap_or_default();
+    let memory_line = match (m.page_hit_rate, m.avg_ns_per_voxel_access) {
+        (Some(hits), Some(ns)) => format!(
+            "; SDRAM {:.1} % row hits, {:.2} ns per voxel access",
+            100.0 * hits,
+            ns
+        ),
+        _ => format!("; ideal memory, {} cycles latency", args.ideal_latency),
+    };
+    println!(
+        "{}: {} cycles = {:.3} ms/frame = {:.1} fps at {} MHz; {}, {} ray selection, ERT {}; \
+         {} steps ({} samples, {} leaps), {} discarded after ERT{memory_line}; \
+         stalls: queue empty {}, skip busy {}, memory {}, buffer full {}; {:.1} M cycles/s simulated",
+        report.volume,
+        cycles,
+        frame_time_ns / 1e6,
+        1e9 / frame_time_ns.max(1e-9),
+        config.clock.frequency_mhz,
+        leaping_text(&report.leaping),
+        serde_json::to_value(report.ray_selection)?.as_str().unwrap_or("?"),
+        if config.compositing.ert { "on" } else { "off" },
+        m.steps,
+        m.samples,
+        m.leaps,
+        s.discarded_after_ert,
+        stalls.ray_queue_empty,
+        stalls.skip_unit_busy,
+        stalls.memory,
+        stalls.compositing_buffer_full,
+        report.sim_cycles_per_second.unwrap_or_default() / 1e6
+    );
+    if let Some(path) = &args.output {
+        report.frame.write_png(path)?;
+    }
+    if let Some(path) = &args.json {
+        vizsim::output::write_json(path, &report)?;
+    }
+    Ok(())
+}

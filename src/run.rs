@@ -1,0 +1,412 @@
+//! One run path. A run is described once (`RunDescription`: dataset, transfer function, view,
+//! model, memory, hardware with its leaping and ERT fields) and executed by one function
+//! (`execute`) that returns one report type (`RunReport`). Every command (`render`, `sim`,
+//! `sweep`, `precision`, `demo`) builds descriptions and calls it, so their defaults and their
+//! figures cannot drift apart.
+//!
+//! Preparing a run (`prepare`: transfer function, classification table, occupancy map) does
+//! not depend on the view, so callers that render many views of one setting (a sweep's frame
+//! group, an orbit) prepare once and execute per view.
+
+use std::time::Instant;
+
+use serde::Serialize;
+use serde_json::Value;
+
+use crate::arch::pipeline::{simulate, CycleStats, StallCycles};
+use crate::arch::sdram_module::SdramMemory;
+use crate::arch::trace::Waveform;
+use crate::arch::voxel_memory::{IdealMemory, VoxelMemory};
+use crate::camera::{check_image_size, Camera, Projection, View};
+use crate::config::{HardwareConfig, RaySelection};
+use crate::error::{Error, Result};
+use crate::functional::renderer::{FixedRenderer, Leaping};
+use crate::render::float::FloatRenderer;
+use crate::render::{Frame, FrameStats, RenderSettings};
+use crate::transfer;
+use crate::volume::Volume;
+
+/// Which of the three models renders the frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Model {
+    /// The floating-point reference ray caster.
+    Float,
+    /// The functional fixed-point model: counts steps (samples + leaps).
+    Step,
+    /// The cycle-accurate pipeline.
+    Cycle,
+}
+
+impl Model {
+    pub fn name(self) -> &'static str {
+        match self {
+            Model::Float => "float",
+            Model::Step => "step",
+            Model::Cycle => "cycle",
+        }
+    }
+
+    /// `float`, `step` (alias `fixed`) or `cycle`.
+    pub fn parse(text: &str) -> std::result::Result<Model, String> {
+        match text {
+            "float" => Ok(Model::Float),
+            "step" | "fixed" => Ok(Model::Step),
+            "cycle" => Ok(Model::Cycle),
+            other => Err(format!(
+                "`{other}`: expected `float`, `step` (or `fixed`) or `cycle`"
+            )),
+        }
+    }
+}
+
+/// The cycle model's voxel memory.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase", tag = "kind")]
+pub enum Memory {
+    /// SDRAM modules, banks, address and voxel FIFOs, overtaking (`[memory]`, `[sdram]`).
+    Sdram,
+    /// Every request served after a fixed latency with unlimited bandwidth: the bound with
+    /// free memory.
+    Ideal { latency: u64 },
+}
+
+/// Largest latency of the ideal memory, in cycles.
+pub const MAX_IDEAL_LATENCY: u64 = 1 << 20;
+
+/// Everything that decides a frame's result.
+#[derive(Clone, Debug, Serialize)]
+pub struct RunDescription {
+    /// Dataset name, phantom spec or file.
+    pub dataset: String,
+    /// Transfer function: `zero`, `class`, a preset name or a TOML file.
+    pub tf: String,
+    /// `front` or `orbit:K/N`.
+    pub view: String,
+    pub projection: Projection,
+    /// Image width and height in pixels.
+    pub size: (u32, u32),
+    /// Distance between samples along a ray, in voxels.
+    pub sample_spacing: f32,
+    /// Phong shading from per-voxel gradients.
+    pub shading: bool,
+    pub model: Model,
+    /// The cycle model's memory (ignored by the other models).
+    pub memory: Memory,
+    /// The resolved hardware configuration: widths, leaping (`occupancy`), ERT
+    /// (`compositing`), the pipeline and the memory. The float model takes its ERT threshold.
+    pub hardware: HardwareConfig,
+}
+
+impl RunDescription {
+    /// A front view at 256×256, orthographic, one sample per voxel, no shading, SDRAM: the
+    /// published protocol's defaults.
+    pub fn new(dataset: &str, tf: &str, model: Model, hardware: HardwareConfig) -> Self {
+        RunDescription {
+            dataset: dataset.to_string(),
+            tf: tf.to_string(),
+            view: "front".into(),
+            projection: Projection::Ortho,
+            size: (256, 256),
+            sample_spacing: 1.0,
+            shading: false,
+            model,
+            memory: Memory::Sdram,
+            hardware,
+        }
+    }
+
+    /// The render settings every model shares: spacing, shading, ERT from the hardware.
+    pub fn settings(&self) -> RenderSettings {
+        RenderSettings {
+            sample_spacing: self.sample_spacing,
+            ert_threshold: self.hardware.ert_threshold(),
+            shading: self.shading,
+            ..RenderSettings::default()
+        }
+    }
+
+    /// Checks what the hardware configuration's own validation cannot: view, size, spacing
+    /// and memory.
+    pub fn validate(&self) -> Result<()> {
+        View::parse(&self.view)?;
+        check_image_size(self.size.0, self.size.1)?;
+        self.settings().validate()?;
+        if let Memory::Ideal { latency } = self.memory {
+            if !(1..=MAX_IDEAL_LATENCY).contains(&latency) {
+                return Err(Error::Invalid(format!(
+                    "ideal memory latency {latency}: allowed 1..={MAX_IDEAL_LATENCY} cycles"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The leaping a model runs: none for the float reference, the configuration's otherwise.
+    pub fn leaping(&self) -> Leaping {
+        match self.model {
+            Model::Float => Leaping::None,
+            Model::Step | Model::Cycle => Leaping::from_config(&self.hardware),
+        }
+    }
+
+    /// The camera of this run's view of a volume.
+    pub fn camera(&self, volume: &Volume) -> Result<Camera> {
+        Camera::for_volume(
+            glam::Vec3::from(volume.extent()),
+            View::parse(&self.view)?,
+            self.projection,
+            self.size.0,
+            self.size.1,
+        )
+    }
+}
+
+enum Renderer<'v> {
+    Float(FloatRenderer<'v>),
+    /// Boxed: it holds the tables and the occupancy map, the float renderer only a table.
+    Fixed(Box<FixedRenderer<'v>>),
+}
+
+/// A run made ready for any view: transfer function, tables, occupancy map.
+pub struct Prepared<'v> {
+    volume: &'v Volume,
+    /// The transfer function's name (a preset's or the file's).
+    pub transfer_function: String,
+    renderer: Renderer<'v>,
+}
+
+impl<'v> Prepared<'v> {
+    /// The fixed-point renderer, for the step and cycle models.
+    pub fn fixed(&self) -> Option<&FixedRenderer<'v>> {
+        match &self.renderer {
+            Renderer::Fixed(r) => Some(r),
+            Renderer::Float(_) => None,
+        }
+    }
+}
+
+/// Validates `run` and prepares it on `volume` (which must be the run's dataset).
+pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<'v>> {
+    run.validate()?;
+    let tf = transfer::resolve(&run.tf, &volume.name)?;
+    let settings = run.settings();
+    let renderer = match run.model {
+        Model::Float => Renderer::Float(FloatRenderer::new(volume, &tf, &settings)?),
+        Model::Step | Model::Cycle => {
+            if run.model == Model::Cycle && run.memory == Memory::Sdram {
+                run.hardware
+                    .memory
+                    .check_covers(volume.dims, "hardware configuration")?;
+            }
+            Renderer::Fixed(Box::new(FixedRenderer::new(
+                volume,
+                &tf,
+                &settings,
+                &run.hardware,
+                run.leaping(),
+            )?))
+        }
+    };
+    Ok(Prepared {
+        volume,
+        transfer_function: tf.name,
+        renderer,
+    })
+}
+
+/// Optional observers of a cycle-model run.
+#[derive(Default)]
+pub struct Probes<'a> {
+    /// VCD waveform of a cycle window.
+    pub waveform: Option<&'a mut Waveform>,
+}
+
+/// The figures of one run. Fields a model does not produce are absent (not zero).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Measurements {
+    /// Issue steps: samples + leaps (the published cost unit).
+    pub steps: u64,
+    pub samples: u64,
+    pub leaps: u64,
+    pub rays_terminated_early: u64,
+    /// Cycle model: clock cycles of the frame.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cycles: Option<u64>,
+    /// Cycle model: samples issued after their ray's ERT, discarded at compositing.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub discarded_after_ert: Option<u64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stall_cycles: Option<StallCycles>,
+    /// Step model: steps × `clock.step_time_ns`; cycle model: cycles at `clock.frequency_mhz`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frame_time_ns: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fps: Option<f64>,
+    /// SDRAM: reads that found their row open / had to open it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub row_hits: Option<u64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub row_misses: Option<u64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refreshes: Option<u64>,
+    /// SDRAM: row hits / reads (the published calibration: about 95 %).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub page_hit_rate: Option<f64>,
+    /// SDRAM: module busy time per voxel access (the published calibration: 12.5 ns).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub avg_ns_per_voxel_access: Option<f64>,
+    /// Leaping: empty sub-cubes of the occupancy map, percent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub skippable_subcubes_percent: Option<f64>,
+}
+
+/// What a run produced: its description, the figures, the image.
+#[derive(Serialize)]
+pub struct RunReport {
+    pub run: RunDescription,
+    /// The volume's name as loaded.
+    pub volume: String,
+    /// The transfer function's name.
+    pub transfer_function: String,
+    pub leaping: Leaping,
+    pub ray_selection: RaySelection,
+    /// Rays, rays that hit the volume, samples, leaps, as the frame's ray records count them.
+    pub stats: FrameStats,
+    #[serde(flatten)]
+    pub measurements: Measurements,
+    /// Cycle model: everything the pipeline counted (stalls, occupancy histograms...).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pipeline: Option<CycleStats>,
+    /// Cycle model: the memory's own statistics.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub memory_stats: Option<Value>,
+    /// Wall-clock time of the frame (not of loading or preparing).
+    pub wall_seconds: f64,
+    /// Samples per wall-clock second of this frame.
+    pub samples_per_second: f64,
+    /// Cycle model: simulated cycles per wall-clock second of this frame.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sim_cycles_per_second: Option<f64>,
+    #[serde(skip)]
+    pub frame: Frame,
+}
+
+/// Loads the run's dataset from `data_dir` and runs it.
+pub fn run(
+    run: &RunDescription,
+    data_dir: Option<&std::path::Path>,
+    probes: Probes,
+) -> Result<RunReport> {
+    run.validate()?;
+    let volume = crate::volume::dataset::load(&run.dataset, data_dir)?;
+    let prepared = prepare(run, &volume)?;
+    execute(run, &prepared, probes)
+}
+
+/// Runs one frame of a prepared run: the one function every command calls.
+pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Result<RunReport> {
+    let camera = run.camera(prepared.volume)?;
+    let config = &run.hardware;
+    let start = Instant::now();
+    let mut pipeline = None;
+    let mut memory_stats = None;
+    let frame = match (&prepared.renderer, run.model) {
+        (Renderer::Float(r), _) => r.render(&camera),
+        (Renderer::Fixed(r), Model::Step) => r.render(&camera),
+        (Renderer::Fixed(r), _) => {
+            let result = match run.memory {
+                Memory::Sdram => {
+                    let mut memory = SdramMemory::new(
+                        &config.memory,
+                        &config.sdram,
+                        prepared.volume.dims,
+                        config.clock.frequency_mhz,
+                    );
+                    let result = simulate_with(r, &camera, &mut memory, config, probes)?;
+                    memory_stats = Some(memory.stats_json());
+                    result
+                }
+                Memory::Ideal { latency } => {
+                    let mut memory = IdealMemory::new(latency);
+                    let result = simulate_with(r, &camera, &mut memory, config, probes)?;
+                    memory_stats = Some(memory.stats_json());
+                    result
+                }
+            };
+            pipeline = Some(result.stats);
+            result.frame
+        }
+    };
+    let wall_seconds = start.elapsed().as_secs_f64();
+    let stats = frame.stats();
+    let mut m = Measurements {
+        steps: stats.steps(),
+        samples: stats.samples,
+        leaps: stats.leaps,
+        rays_terminated_early: stats.rays_terminated_early,
+        ..Measurements::default()
+    };
+    let frame_time_ns = match (run.model, &pipeline) {
+        (Model::Float, _) => None,
+        (Model::Step, _) => Some(m.steps as f64 * config.clock.step_time_ns),
+        (Model::Cycle, Some(s)) => Some(s.cycles as f64 * 1e3 / config.clock.frequency_mhz),
+        (Model::Cycle, None) => None,
+    };
+    m.frame_time_ns = frame_time_ns;
+    m.fps = frame_time_ns.map(|ns| 1e9 / ns.max(1e-9));
+    if let Some(s) = &pipeline {
+        m.cycles = Some(s.cycles);
+        // The pipeline's own counts (they equal the frame's: checked on every run).
+        m.steps = s.steps;
+        m.samples = s.samples;
+        m.leaps = s.leaps;
+        m.rays_terminated_early = s.rays_terminated_early;
+        m.discarded_after_ert = Some(s.discarded_after_ert);
+        m.stall_cycles = Some(s.stall_cycles);
+    }
+    if let Some(ms) = memory_stats.as_ref().filter(|ms| ms["row_hits"].is_u64()) {
+        m.row_hits = ms["row_hits"].as_u64();
+        m.row_misses = ms["row_misses"].as_u64();
+        m.refreshes = ms["refreshes"].as_u64();
+        m.page_hit_rate = ms["row_hit_rate"].as_f64();
+        m.avg_ns_per_voxel_access = ms["avg_ns_per_voxel_access"].as_f64();
+    }
+    if let Some(map) = prepared.fixed().and_then(|r| r.map.as_ref()) {
+        m.skippable_subcubes_percent =
+            Some(100.0 * map.empty_subcubes() as f64 / map.subcubes().max(1) as f64);
+    }
+    Ok(RunReport {
+        run: run.clone(),
+        volume: prepared.volume.name.clone(),
+        transfer_function: prepared.transfer_function.clone(),
+        leaping: run.leaping(),
+        ray_selection: config.ray_queue.selection,
+        stats,
+        pipeline,
+        memory_stats,
+        wall_seconds,
+        samples_per_second: m.samples as f64 / wall_seconds.max(1e-12),
+        sim_cycles_per_second: m.cycles.map(|c| c as f64 / wall_seconds.max(1e-12)),
+        measurements: m,
+        frame,
+    })
+}
+
+fn simulate_with<M: VoxelMemory>(
+    renderer: &FixedRenderer,
+    camera: &Camera,
+    memory: &mut M,
+    config: &HardwareConfig,
+    probes: Probes,
+) -> Result<crate::arch::pipeline::CycleResult> {
+    simulate(
+        renderer,
+        camera,
+        &renderer.skipper(),
+        memory,
+        config,
+        true,
+        probes.waveform,
+    )
+}
