@@ -110,7 +110,15 @@ impl DataArgs {
     }
 
     pub fn load(&self, spec: &str) -> Result<Volume> {
+        note_stand_in(spec);
         Ok(dataset::load(spec, self.dir()?.as_deref())?)
+    }
+}
+
+/// Says so when a published dataset name resolves to its stand-in.
+pub fn note_stand_in(spec: &str) {
+    if let Some(stand_in) = dataset::stand_in_for(spec) {
+        println!("{spec}: the published dataset is not available; its stand-in {stand_in} is used");
     }
 }
 
@@ -161,6 +169,7 @@ impl FrameArgs {
             ..RunDescription::new(&self.dataset, &self.tf, model, config)
         };
         run.validate()?;
+        note_stand_in(&self.dataset);
         Ok(run)
     }
 }

@@ -73,11 +73,11 @@ pub fn run(args: SweepArgs) -> Result<()> {
             .copied()
             .filter(|r| r.run.model == model)
             .collect();
-        experiment::estimate_seconds(&expansion, &of, threads) / 60.0
+        experiment::estimate_seconds(&expansion, &of, threads)
     };
     println!(
         "{}: {} runs{} ({} step model, {} cycle model to run; {} already done in {}); \
-         estimate {:.0} + {:.0} min on {threads} threads (step + cycle model; rough)",
+         estimate {} + {} on {threads} threads (step + cycle model; rough)",
         expansion.experiment.name,
         mine.len(),
         shard
@@ -87,8 +87,8 @@ pub fn run(args: SweepArgs) -> Result<()> {
         count(spec::Model::Cycle),
         mine.len() - pending.len(),
         out.display(),
-        estimate(spec::Model::Step),
-        estimate(spec::Model::Cycle),
+        duration_text(estimate(spec::Model::Step)),
+        duration_text(estimate(spec::Model::Cycle)),
     );
     for s in &expansion.skipped {
         println!("  left out: {} {}: {}", s.dataset, s.mode, s.reason);
@@ -112,4 +112,17 @@ pub fn run(args: SweepArgs) -> Result<()> {
         out.join(experiment::store::RESULTS).display()
     );
     Ok(())
+}
+
+/// A duration as a person reads it: seconds under a minute, minutes under two hours, else hours.
+fn duration_text(seconds: f64) -> String {
+    if seconds < 1.0 {
+        "under 1 s".into()
+    } else if seconds < 60.0 {
+        format!("{seconds:.0} s")
+    } else if seconds < 7200.0 {
+        format!("{:.1} min", seconds / 60.0)
+    } else {
+        format!("{:.1} h", seconds / 3600.0)
+    }
 }

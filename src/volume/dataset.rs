@@ -21,7 +21,23 @@ pub const DATA_DIR_ENV: &str = "VIZSIM_DATA";
 const DEFAULT_DATA_DIR: &str = "../shared/data";
 
 /// Published names that refer to a dataset under another file name.
-const ALIASES: &[(&str, &str)] = &[("vessel", "aneurism")];
+const ALIASES: &[(&str, &str)] = &[
+    ("vessel", "aneurism"),
+    ("skull", "tooth_103x94x161"),
+    ("foot", "foot-lossy"),
+];
+
+/// Published datasets that are not available, with the dataset that stands in for each (brief,
+/// section 6): `--dataset skull` loads the tooth, `--dataset foot` the lossy preview.
+pub const STAND_INS: &[(&str, &str)] = &[("skull", "tooth_103x94x161"), ("foot", "foot-lossy")];
+
+/// The stand-in a published name resolves to, when it does.
+pub fn stand_in_for(spec: &str) -> Option<&'static str> {
+    STAND_INS
+        .iter()
+        .find(|(name, _)| *name == spec)
+        .map(|(_, stand_in)| *stand_in)
+}
 
 /// The data directory to use: the explicit option, else the environment, else the default
 /// when it exists. None when no data directory is available.

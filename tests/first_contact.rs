@@ -1,0 +1,172 @@
+//! What a new user meets first (issue 13, section 4): the demo with a partial or missing data
+//! folder, the published dataset names, help texts, dry-run estimates and error messages.
+
+mod common;
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn vizsim_env(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_vizsim"));
+    cmd.args(args).current_dir(env!("CARGO_MANIFEST_DIR"));
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    cmd.output().expect("run vizsim")
+}
+
+fn vizsim(args: &[&str]) -> Output {
+    vizsim_env(args, &[])
+}
+
+fn text(out: &Output) -> (String, String) {
+    (
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("vizsim-first-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn demo_renders_what_is_there_and_says_what_it_skipped() {
+    let dir = scratch("demo");
+    let empty = dir.join("empty-data");
+    std::fs::create_dir_all(&empty).unwrap();
+    let out_dir = dir.join("demo");
+    let out = vizsim_env(
+        &["demo", "--frames", "2", "--out", out_dir.to_str().unwrap()],
+        &[("VIZSIM_DATA", empty.to_str().unwrap())],
+    );
+    let (stdout, stderr) = text(&out);
+    assert!(out.status.success(), "{stdout}\n{stderr}");
+    assert!(stdout.contains("no fuel"), "{stdout}");
+    assert!(stdout.contains("fuel is not there, left out"), "{stdout}");
+    assert!(
+        out_dir.join("orbit-phantom-metaballs-64.png").is_file(),
+        "{stdout}"
+    );
+    let galleries = std::fs::read_dir(&out_dir)
+        .unwrap()
+        .filter(|e| {
+            let name = e.as_ref().unwrap().file_name();
+            name.to_string_lossy().starts_with("gallery-phantom")
+        })
+        .count();
+    assert_eq!(galleries, 5, "one gallery per phantom");
+}
+
+#[test]
+fn an_explicit_data_folder_that_does_not_exist_is_an_error() {
+    let out = vizsim(&["demo", "--data-dir", "/nope/vizsim-data", "--frames", "1"]);
+    let (_, stderr) = text(&out);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("--data-dir /nope/vizsim-data: no such folder"),
+        "{stderr}"
+    );
+    let out = vizsim(&["info", "fuel", "--data-dir", "/nope/vizsim-data"]);
+    assert!(!out.status.success());
+    assert!(text(&out).1.contains("--data-dir"), "{}", text(&out).1);
+}
+
+#[test]
+fn published_names_resolve_to_their_stand_ins() {
+    let Some(data) = common::data_dir() else {
+        eprintln!("SKIP published_names_resolve_to_their_stand_ins: no data directory");
+        return;
+    };
+    let data = data.to_str().unwrap();
+    for (name, stand_in) in [
+        ("skull", "tooth_103x94x161"),
+        ("foot", "foot-lossy"),
+        ("vessel", "aneurism"),
+    ] {
+        let out = vizsim(&["info", name, "--data-dir", data, "--json"]);
+        let (stdout, stderr) = text(&out);
+        assert!(out.status.success(), "{name}: {stderr}");
+        assert!(
+            stdout.contains(&format!("\"name\": \"{stand_in}\"")),
+            "{stdout}"
+        );
+    }
+}
+
+#[test]
+fn help_describes_every_argument_and_points_nowhere_circular() {
+    let (help, _) = text(&vizsim(&["precision", "--help"]));
+    // Every option line of clap's help is followed by its description on the same line.
+    for line in help.lines().filter(|l| l.trim_start().starts_with("--")) {
+        let option = line.split_whitespace().next().unwrap();
+        if option == "--help" || option == "--version" {
+            continue;
+        }
+        let described = line
+            .trim_start()
+            .split("  ")
+            .filter(|p| !p.is_empty())
+            .count()
+            >= 2;
+        assert!(described, "precision {option} has no description: {line:?}");
+    }
+    let (help, _) = text(&vizsim(&["info", "--help"]));
+    assert!(!help.contains("vizsim info --help"), "{help}");
+    assert!(help.contains("phantom:"), "{help}");
+    let (help, _) = text(&vizsim(&["sweep", "--help"]));
+    assert!(help.contains("--dry-run"));
+    assert!(help.contains("how many runs"), "{help}");
+}
+
+#[test]
+fn a_short_dry_run_is_estimated_in_seconds() {
+    let dir = scratch("dry");
+    let exp = dir.join("tiny.toml");
+    std::fs::write(
+        &exp,
+        "name = \"tiny\"\ndatasets = [\"phantom:sphere:16\"]\nmodes = [\"ert\"]\nmodels = [\"step\"]\n[frames]\norbit = 2\nsize = \"16x16\"\n",
+    )
+    .unwrap();
+    let out = vizsim(&[
+        "sweep",
+        exp.to_str().unwrap(),
+        "--out",
+        dir.join("o").to_str().unwrap(),
+        "--dry-run",
+    ]);
+    let (stdout, stderr) = text(&out);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stdout.contains("estimate under 1 s + under 1 s"),
+        "{stdout}"
+    );
+    assert!(!stdout.contains(" 0 min"), "{stdout}");
+}
+
+#[test]
+fn an_io_error_names_the_path_once_and_the_option() {
+    let dir = scratch("io");
+    let png = dir.join("x.png");
+    let out = vizsim(&[
+        "render",
+        "--dataset",
+        "phantom:sphere:16",
+        "--config",
+        "/nope/hw.toml",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    let (_, stderr) = text(&out);
+    assert!(!out.status.success());
+    assert!(stderr.contains("--config /nope/hw.toml"), "{stderr}");
+    assert_eq!(
+        stderr.matches("No such file or directory").count(),
+        1,
+        "{stderr}"
+    );
+    assert!(!png.exists());
+}
