@@ -47,6 +47,10 @@ pub struct CostPoint {
 
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct PrecisionReport {
+    /// The command that made the report (set by the caller; written into every text file).
+    pub made_by: String,
+    /// Where the base configuration differs from the calibrated default (`section.field = value`).
+    pub hardware_changes: Vec<String>,
     pub dataset: String,
     pub transfer_function: String,
     pub image: Vec<ImagePoint>,
@@ -134,11 +138,23 @@ pub fn sweep(base: &RunDescription, volume: &Volume) -> Result<PrecisionReport> 
         }
     }
     Ok(PrecisionReport {
+        made_by: String::new(),
+        hardware_changes: base.hardware.differences_from_default(),
         dataset: volume.name.clone(),
         transfer_function: reference.transfer_function,
         image,
         cost,
     })
+}
+
+/// The line every generated report carries: the command and what the configuration was.
+pub fn provenance(made_by: &str, hardware_changes: &[String]) -> String {
+    let hardware = if hardware_changes.is_empty() {
+        "the default hardware configuration".to_string()
+    } else {
+        format!("the default hardware configuration with {}", hardware_changes.join(", "))
+    };
+    format!("Made by `{made_by}` with {hardware}.")
 }
 
 /// Writes `<stem>.csv`, `<stem>.md`, `<stem>.json`, and the charts `<stem>-psnr`,
@@ -171,10 +187,12 @@ pub fn write_report(report: &PrecisionReport, out_dir: &Path) -> Result<Vec<Path
     written.push(path);
 
     let mut md = format!(
-        "# Fixed-point precision: {} ({})\n\nFixed-point model (default widths, one field changed at a time) \
+        "# Fixed-point precision: {} ({})\n\n{}\n\nFixed-point model (default widths, one field changed at a time) \
          against the float reference. Errors in 8-bit steps; PSNR over RGB.\n\n\
          | field | bits | max error (R,G,B,A) | mean error | PSNR dB | pixels > 1 LSB |\n|---|---:|---|---:|---:|---:|\n",
-        report.dataset, report.transfer_function
+        report.dataset,
+        report.transfer_function,
+        provenance(&report.made_by, &report.hardware_changes),
     );
     for p in &report.image {
         let c = &p.comparison;

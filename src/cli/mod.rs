@@ -289,3 +289,24 @@ pub fn leaping_text(leaping: &vizsim::functional::renderer::Leaping) -> String {
         ),
     }
 }
+
+/// The command line as typed, for the provenance line of generated reports: `vizsim` and the
+/// arguments, quoted where a shell would need it. Relative paths stay relative, so the same
+/// command run from another folder records the same line.
+pub fn invocation() -> String {
+    let quote = |arg: String| {
+        if !arg.is_empty()
+            && arg
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || "-_./:=,+".contains(c))
+        {
+            arg
+        } else {
+            format!("'{}'", arg.replace('\'', r"'\''"))
+        }
+    };
+    std::iter::once("vizsim".to_string())
+        .chain(std::env::args().skip(1).map(quote))
+        .collect::<Vec<_>>()
+        .join(" ")
+}

@@ -53,7 +53,8 @@ pub fn run(args: PrecisionArgs) -> Result<()> {
     println!("{}", args.hardware.resolved_line(&base.hardware));
     let volume = args.data.load(&args.dataset)?;
     let start = Instant::now();
-    let report = vizsim::precision::sweep(&base, &volume)?;
+    let mut report = vizsim::precision::sweep(&base, &volume)?;
+    report.made_by = super::invocation();
     for path in vizsim::precision::write_report(&report, &args.out)? {
         println!("wrote {}", path.display());
     }
