@@ -86,6 +86,32 @@ pub struct SkipConfig {
     pub distance_frac_bits: u32,
     /// Cycles from issuing a step to its new position being back in the ray queue (published: 8).
     pub latency: u32,
+    /// What a step at a position in an empty sub-cube does: "leap-only" (no sample, no memory
+    /// request) or "sample-then-leap" (the published cost: the position is sampled like any
+    /// other, then the ray leaps from it). Written out only when not the default, so the
+    /// serialised default configuration, and every run key derived from it, is unchanged.
+    #[serde(default, skip_serializing_if = "SkipPolicy::is_leap_only")]
+    pub policy: SkipPolicy,
+}
+
+/// How the skip unit treats a position in an empty sub-cube (docs/model.md, "Steps and the
+/// published cost"). Both advance the ray by the same leap n computed at that position.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SkipPolicy {
+    /// Take no sample: the step is one issue slot with no memory request.
+    #[default]
+    LeapOnly,
+    /// Sample the position like any other (memory request, classification, compositing of a
+    /// zero-opacity sample), then leap: "for each sub-cube at least one sample needs to be
+    /// processed" (Meißner et al. 2001).
+    SampleThenLeap,
+}
+
+impl SkipPolicy {
+    pub fn is_leap_only(&self) -> bool {
+        *self == SkipPolicy::LeapOnly
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -152,7 +152,10 @@ pub fn provenance(made_by: &str, hardware_changes: &[String]) -> String {
     let hardware = if hardware_changes.is_empty() {
         "the default hardware configuration".to_string()
     } else {
-        format!("the default hardware configuration with {}", hardware_changes.join(", "))
+        format!(
+            "the default hardware configuration with {}",
+            hardware_changes.join(", ")
+        )
     };
     format!("Made by `{made_by}` with {hardware}.")
 }

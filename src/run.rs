@@ -229,6 +229,8 @@ pub struct Measurements {
     pub steps: u64,
     pub samples: u64,
     pub leaps: u64,
+    /// Samples followed by a leap (`skip.policy = "sample-then-leap"`); included in `samples`.
+    pub leap_samples: u64,
     pub rays_terminated_early: u64,
     /// Cycle model: clock cycles of the frame.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -344,6 +346,7 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         steps: stats.steps(),
         samples: stats.samples,
         leaps: stats.leaps,
+        leap_samples: stats.leap_samples,
         rays_terminated_early: stats.rays_terminated_early,
         ..Measurements::default()
     };
@@ -361,6 +364,7 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         m.steps = s.steps;
         m.samples = s.samples;
         m.leaps = s.leaps;
+        m.leap_samples = s.leap_samples;
         m.rays_terminated_early = s.rays_terminated_early;
         m.discarded_after_ert = Some(s.discarded_after_ert);
         m.stall_cycles = Some(s.stall_cycles);

@@ -125,3 +125,54 @@ fn pipeline_and_memory_fields_are_validated() {
         assert!(err.contains(field), "{set}: {err}");
     }
 }
+
+#[test]
+fn skip_policy_defaults_to_leap_only_and_rejects_other_values_naming_them() {
+    use vizsim::config::SkipPolicy;
+    let config = HardwareConfig::default_config();
+    assert_eq!(config.skip.policy, SkipPolicy::LeapOnly);
+    // A file written before the field existed still reads, with the default.
+    let old = vizsim::config::DEFAULT_TOML.replace("policy = \"leap-only\"", "");
+    assert_ne!(old, vizsim::config::DEFAULT_TOML);
+    assert_eq!(load(&old, &[]).unwrap(), config);
+    for set in [
+        "skip.policy=sample-then-leap",
+        "skip.policy=\"sample-then-leap\"",
+    ] {
+        let c = load(vizsim::config::DEFAULT_TOML, &[set]).unwrap();
+        assert_eq!(c.skip.policy, SkipPolicy::SampleThenLeap, "{set}");
+    }
+    let text = vizsim::config::DEFAULT_TOML.replace("\"leap-only\"", "\"leap-always\"");
+    for err in [
+        load(&text, &[]).unwrap_err().to_string(),
+        load(vizsim::config::DEFAULT_TOML, &["skip.policy=sample-only"])
+            .unwrap_err()
+            .to_string(),
+    ] {
+        assert!(
+            err.contains("test.toml")
+                && err.contains("skip.policy")
+                && err.contains("leap-only")
+                && err.contains("sample-then-leap"),
+            "{err}"
+        );
+    }
+}
+
+/// Run keys hash the serialised configuration: the default policy is not written out, so every
+/// existing result keeps its key; the other policy is, so its runs get keys of their own.
+#[test]
+fn skip_policy_is_serialised_only_when_not_the_default() {
+    let config = HardwareConfig::default_config();
+    let json = serde_json::to_value(&config).unwrap();
+    assert!(json["skip"].get("policy").is_none(), "{}", json["skip"]);
+    let other = load(
+        vizsim::config::DEFAULT_TOML,
+        &["skip.policy=sample-then-leap"],
+    )
+    .unwrap();
+    let json = serde_json::to_value(&other).unwrap();
+    assert_eq!(json["skip"]["policy"], "sample-then-leap");
+    let back: HardwareConfig = serde_json::from_value(json).unwrap();
+    assert_eq!(back, other);
+}

@@ -7,7 +7,7 @@ use common::{camera, views};
 use vizsim::arch::pipeline::{simulate, CycleResult};
 use vizsim::arch::voxel_memory::IdealMemory;
 use vizsim::camera::{Projection, View};
-use vizsim::config::HardwareConfig;
+use vizsim::config::{HardwareConfig, SkipPolicy};
 use vizsim::functional::renderer::{FixedRenderer, Leaping};
 use vizsim::occupancy::OccupancyKind;
 use vizsim::render::RenderSettings;
@@ -51,7 +51,6 @@ fn run(
 }
 
 fn check_against_functional(volume: &Volume, tf: &TransferFunction, size: u32) {
-    let config = config();
     for (view, projection) in views() {
         let cam = camera(volume, view, projection, size);
         for ert in [Some(0.95), None] {
@@ -59,23 +58,47 @@ fn check_against_functional(volume: &Volume, tf: &TransferFunction, size: u32) {
                 ert_threshold: ert,
                 ..Default::default()
             };
-            for leaping in [
-                Leaping::None,
-                Leaping::Occupancy {
-                    subcube: 4,
-                    hierarchy: false,
-                    kind: OccupancyKind::Class,
-                },
-                Leaping::Occupancy {
-                    subcube: 8,
-                    hierarchy: true,
-                    kind: OccupancyKind::Zero,
-                },
+            for (leaping, policy) in [
+                (Leaping::None, SkipPolicy::LeapOnly),
+                (
+                    Leaping::Occupancy {
+                        subcube: 4,
+                        hierarchy: false,
+                        kind: OccupancyKind::Class,
+                    },
+                    SkipPolicy::LeapOnly,
+                ),
+                (
+                    Leaping::Occupancy {
+                        subcube: 4,
+                        hierarchy: false,
+                        kind: OccupancyKind::Class,
+                    },
+                    SkipPolicy::SampleThenLeap,
+                ),
+                (
+                    Leaping::Occupancy {
+                        subcube: 8,
+                        hierarchy: true,
+                        kind: OccupancyKind::Zero,
+                    },
+                    SkipPolicy::LeapOnly,
+                ),
+                (
+                    Leaping::Occupancy {
+                        subcube: 8,
+                        hierarchy: true,
+                        kind: OccupancyKind::Zero,
+                    },
+                    SkipPolicy::SampleThenLeap,
+                ),
             ] {
+                let mut config = config();
+                config.skip.policy = policy;
                 let renderer = FixedRenderer::new(volume, tf, &settings, &config, leaping).unwrap();
                 let functional = renderer.render(&cam);
                 let cycle = run(&renderer, &cam, &config, 5, true);
-                let what = format!("{view:?} {projection:?} ert {ert:?} {leaping:?}");
+                let what = format!("{view:?} {projection:?} ert {ert:?} {leaping:?} {policy:?}");
                 assert!(
                     cycle.frame.pixels == functional.pixels,
                     "image differs: {what}"
@@ -89,7 +112,16 @@ fn check_against_functional(volume: &Volume, tf: &TransferFunction, size: u32) {
                 assert_eq!(s.rays_terminated_early, f.rays_terminated_early, "{what}");
                 if ert.is_none() {
                     assert_eq!(s.steps, f.steps(), "{what}");
+                    assert_eq!(
+                        (s.samples, s.leaps, s.leap_samples),
+                        (f.samples, f.leaps, f.leap_samples),
+                        "{what}"
+                    );
+                    assert_eq!(cycle.frame.rays, functional.rays, "{what}: per-ray counts");
                     assert_eq!(s.discarded_after_ert, 0);
+                }
+                if policy == SkipPolicy::SampleThenLeap && leaping != Leaping::None {
+                    assert!(s.leap_samples > 0 && s.leaps == 0, "{what}: {s:?}");
                 }
                 assert!(s.cycles >= s.steps, "{what}: one issue per clock at most");
             }
@@ -143,33 +175,84 @@ fn one_ray_in_flight_pays_the_skip_latency_and_eight_hide_it() {
     );
 }
 
+/// With sample-then-leap a step in an empty sub-cube issues a memory request, yet the ray's
+/// update P + n·V still comes back from the skip unit after `skip.latency` cycles: one ray in
+/// flight takes a step per 8 cycles with either policy, and eight rays hide the latency.
+#[test]
+fn leap_samples_pay_the_skip_latency_like_any_step() {
+    let volume = common::uniform([32, 32, 32], 0);
+    let tf = common::tf(&[(0.0, [0.0; 4]), (255.0, [1.0; 4])]);
+    let settings = RenderSettings {
+        ert_threshold: None,
+        ..Default::default()
+    };
+    let cam = camera(&volume, View::Front, Projection::Ortho, 8);
+    let leaping = Leaping::Occupancy {
+        subcube: 4,
+        hierarchy: false,
+        kind: OccupancyKind::Zero,
+    };
+    let stats = |rays: usize, policy: SkipPolicy| {
+        let mut config = config();
+        config.ray_queue.rays = rays;
+        config.skip.policy = policy;
+        let renderer = FixedRenderer::new(&volume, &tf, &settings, &config, leaping).unwrap();
+        let r = run(&renderer, &cam, &config, 1, true);
+        assert!(r.frame.pixels == renderer.render(&cam).pixels);
+        r.stats
+    };
+    let lo = stats(1, SkipPolicy::LeapOnly);
+    let stl = stats(1, SkipPolicy::SampleThenLeap);
+    // Everything is empty: leap-only issues no request, sample-then-leap one per step.
+    assert_eq!((lo.samples, stl.leaps), (0, 0));
+    assert_eq!(stl.samples, lo.steps);
+    assert_eq!(stl.steps, lo.steps);
+    assert!(stl.leap_samples > 0);
+    for (name, s) in [("leap-only", &lo), ("sample-then-leap", &stl)] {
+        let per_step = s.cycles as f64 / s.steps as f64;
+        eprintln!(
+            "R=1 {name}: {} cycles, {} steps, {per_step:.3} cycles per step",
+            s.cycles, s.steps
+        );
+        assert!((8.0..8.6).contains(&per_step), "R=1 {name}: {per_step}");
+    }
+    for policy in [SkipPolicy::LeapOnly, SkipPolicy::SampleThenLeap] {
+        let s = stats(8, policy);
+        let per_step = s.cycles as f64 / s.steps as f64;
+        assert!(per_step < 1.2, "R=8 {policy:?}: {per_step}");
+    }
+}
+
 #[test]
 fn jumping_over_dead_cycles_equals_ticking() {
     let volume = common::ball(32);
     let tf = ball_tf();
-    let mut config = config();
-    config.ray_queue.rays = 3; // plenty of dead cycles
     let cam = camera(&volume, View::Orbit { k: 4, n: 72 }, Projection::Ortho, 24);
-    let renderer = FixedRenderer::new(
-        &volume,
-        &tf,
-        &RenderSettings::default(),
-        &config,
-        Leaping::Occupancy {
-            subcube: 4,
-            hierarchy: true,
-            kind: OccupancyKind::Class,
-        },
-    )
-    .unwrap();
-    let jumped = run(&renderer, &cam, &config, 20, true);
-    let ticked = run(&renderer, &cam, &config, 20, false);
-    assert!(jumped.stats.skipped_cycles > 0);
-    assert_eq!(ticked.stats.skipped_cycles, 0);
-    let mut a = jumped.stats.clone();
-    a.skipped_cycles = 0;
-    assert_eq!(a, ticked.stats);
-    assert_eq!(jumped.frame.pixels, ticked.frame.pixels);
+    for policy in [SkipPolicy::LeapOnly, SkipPolicy::SampleThenLeap] {
+        let mut config = config();
+        config.ray_queue.rays = 3; // plenty of dead cycles
+        config.skip.policy = policy;
+        let renderer = FixedRenderer::new(
+            &volume,
+            &tf,
+            &RenderSettings::default(),
+            &config,
+            Leaping::Occupancy {
+                subcube: 4,
+                hierarchy: true,
+                kind: OccupancyKind::Class,
+            },
+        )
+        .unwrap();
+        let jumped = run(&renderer, &cam, &config, 20, true);
+        let ticked = run(&renderer, &cam, &config, 20, false);
+        assert!(jumped.stats.skipped_cycles > 0);
+        assert_eq!(ticked.stats.skipped_cycles, 0);
+        let mut a = jumped.stats.clone();
+        a.skipped_cycles = 0;
+        assert_eq!(a, ticked.stats, "{policy:?}");
+        assert_eq!(jumped.frame.pixels, ticked.frame.pixels);
+    }
 }
 
 #[test]

@@ -257,3 +257,115 @@ fn shading_keeps_leaping_invisible_and_stays_close_to_float() {
         assert!(unshaded.pixels != plain.pixels);
     }
 }
+
+/// A 64×8×8 volume empty except for the slab x = 40..=43, and one axis-aligned ray through it
+/// at y = z = 2.5 (positions on the integer x, so every count is known by hand). With s = 4 the
+/// dilated occupancy bits make sub-cubes 9 and 10 (x = 36..=43) occupied and the rest empty.
+fn slab_ray_counts(
+    origin_x: f32,
+    dir_x: f32,
+    hierarchy: bool,
+    policy: vizsim::config::SkipPolicy,
+    ert: Option<f32>,
+) -> vizsim::render::RayRecord {
+    use vizsim::camera::Ray;
+    use vizsim::functional::setup::setup_ray;
+    let dims = [64, 8, 8];
+    let data = (0..64 * 8 * 8)
+        .map(|i| {
+            if (40..=43).contains(&(i % 64)) {
+                100
+            } else {
+                0
+            }
+        })
+        .collect();
+    let volume = vizsim::volume::Volume::new("slab", dims, [1.0; 3], 8, data).unwrap();
+    let tf = common::tf(&[(0.0, [0.0; 4]), (100.0, [1.0, 0.5, 0.2, 1.0])]);
+    let mut config = HardwareConfig::default_config();
+    config.skip.policy = policy;
+    let settings = RenderSettings {
+        ert_threshold: ert,
+        ..Default::default()
+    };
+    let leaping = Leaping::Occupancy {
+        subcube: 4,
+        hierarchy,
+        kind: OccupancyKind::Class,
+    };
+    let renderer = FixedRenderer::new(&volume, &tf, &settings, &config, leaping).unwrap();
+    let ray = Ray {
+        origin: glam::Vec3A::new(origin_x, 2.5, 2.5),
+        dir: glam::Vec3A::new(dir_x, 0.0, 0.0),
+        t_min: 0.0,
+    };
+    let fixed = setup_ray(&ray, dims, 1.0, &renderer.widths);
+    renderer.cast(&fixed, &renderer.skipper()).1
+}
+
+#[test]
+fn skip_policies_take_the_hand_counted_steps_on_a_known_empty_run() {
+    use vizsim::config::SkipPolicy::{LeapOnly, SampleThenLeap};
+    // (samples, leaps, leap samples, skipped positions); steps = samples + leaps.
+    let counts = |r: vizsim::render::RayRecord| (r.samples, r.leaps, r.leap_samples, r.skipped);
+    for (origin, dir) in [(0.0, 1.0), (63.0, -1.0)] {
+        // 64 positions: sub-cubes 0..=8 and 11..=15 are empty (14 leaps of 4), 36..=43 sampled.
+        let lo = slab_ray_counts(origin, dir, false, LeapOnly, None);
+        assert_eq!(counts(lo), (8, 14, 0, 56), "dir {dir}: {lo:?}");
+        // The same 22 steps, each a sample: 14 of them a sample followed by a leap of 4.
+        let stl = slab_ray_counts(origin, dir, false, SampleThenLeap, None);
+        assert_eq!(counts(stl), (22, 0, 14, 42), "dir {dir}: {stl:?}");
+        // Hierarchy: 2×2×2 groups (8 voxels in x) leap whole; groups 4 and 5 hold the slab,
+        // so their empty sub-cubes 8 and 11 leap 4. 4 + 1 + 1 + 2 = 8 leaps, 8 samples.
+        let lo = slab_ray_counts(origin, dir, true, LeapOnly, None);
+        assert_eq!(counts(lo), (8, 8, 0, 56), "dir {dir} hierarchy: {lo:?}");
+        let stl = slab_ray_counts(origin, dir, true, SampleThenLeap, None);
+        assert_eq!(counts(stl), (16, 0, 8, 48), "dir {dir} hierarchy: {stl:?}");
+    }
+    // Starting at x = 3, the last position of empty sub-cube 0: the leap there is n = 1, so
+    // sample-then-leap takes an ordinary sample (not a leap sample). 61 positions.
+    let lo = slab_ray_counts(3.0, 1.0, false, LeapOnly, None);
+    assert_eq!(counts(lo), (8, 14, 0, 53), "{lo:?}");
+    let stl = slab_ray_counts(3.0, 1.0, false, SampleThenLeap, None);
+    assert_eq!(counts(stl), (22, 0, 13, 39), "{stl:?}");
+    // ERT at the first opaque sample (x = 40): 9 leaps, then 36..=40 sampled; the zero-opacity
+    // leap samples before it change neither the pixel nor where the ray stops.
+    let ert = Some(0.95);
+    let lo = slab_ray_counts(0.0, 1.0, false, LeapOnly, ert);
+    let stl = slab_ray_counts(0.0, 1.0, false, SampleThenLeap, ert);
+    assert_eq!(counts(lo), (5, 9, 0, 36), "{lo:?}");
+    assert_eq!(counts(stl), (14, 0, 9, 27), "{stl:?}");
+    assert!(lo.terminated_early && stl.terminated_early);
+}
+
+#[test]
+fn sample_then_leap_samples_each_empty_subcube_once_and_keeps_the_step_count() {
+    use vizsim::config::SkipPolicy;
+    let volume = common::ball(64);
+    let tf = ball_tf();
+    let cam = camera(&volume, View::Orbit { k: 3, n: 72 }, Projection::Persp, 64);
+    let settings = RenderSettings::default();
+    let plain = render_fixed(&volume, &tf, &cam, &settings, Leaping::None).stats();
+    for (subcube, hierarchy) in [(4, false), (8, true), (16, false)] {
+        let leaping = Leaping::Occupancy {
+            subcube,
+            hierarchy,
+            kind: OccupancyKind::Class,
+        };
+        let run = |policy| {
+            common::render_fixed_with(&volume, &tf, &cam, &settings, leaping, policy).stats()
+        };
+        let (lo, stl) = (run(SkipPolicy::LeapOnly), run(SkipPolicy::SampleThenLeap));
+        let what = format!("{leaping:?}: leap-only {lo:?}, sample-then-leap {stl:?}");
+        assert!(lo.leaps > 0 && stl.leap_samples > 0, "{what}");
+        assert_eq!(stl.steps(), lo.steps(), "{what}");
+        assert_eq!(stl.samples, lo.samples + lo.leaps, "{what}");
+        assert_eq!(stl.leaps, 0, "{what}");
+        assert!(stl.leap_samples <= lo.leaps, "{what}");
+        assert!(stl.steps() < plain.steps(), "{what}");
+        assert_eq!(
+            stl.rays_terminated_early, lo.rays_terminated_early,
+            "{what}"
+        );
+    }
+}

@@ -93,12 +93,12 @@ fn fixed_point_stays_close_to_float_on_real_data() {
 }
 
 /// The cycle model (SDRAM) against the functional model on real data: fuel and neghip over
-/// sub-cube sizes, hierarchy, ERT and projections; one 256³ view.
+/// sub-cube sizes, hierarchy, ERT and projections; one 256³ view; both skip policies.
 #[test]
 fn cycle_model_equals_functional_on_real_data() {
     use vizsim::arch::pipeline::simulate;
     use vizsim::arch::sdram_module::SdramMemory;
-    use vizsim::config::HardwareConfig;
+    use vizsim::config::{HardwareConfig, SkipPolicy};
     use vizsim::functional::renderer::FixedRenderer;
     let mut config = HardwareConfig::default_config();
     config.occupancy.sram_bits = 1 << 24;
@@ -163,24 +163,37 @@ fn cycle_model_equals_functional_on_real_data() {
             ert_threshold: ert,
             ..Default::default()
         };
-        let renderer = FixedRenderer::new(&volume, &tf, &settings, &config, leaping).unwrap();
-        let mut memory = SdramMemory::new(&config.memory, &config.sdram, volume.dims, 100.0);
-        let cycle = simulate(
-            &renderer,
-            &cam,
-            &renderer.skipper(),
-            &mut memory,
-            &config,
-            true,
-            None,
-        )
-        .unwrap();
-        let functional = renderer.render(&cam);
-        assert!(
-            cycle.frame.pixels == functional.pixels,
-            "{name} {view:?} {leaping:?}"
-        );
-        assert_eq!(cycle.stats.composited, functional.stats().samples, "{name}");
-        assert!(cycle.stats.cycles >= cycle.stats.steps);
+        for policy in [SkipPolicy::LeapOnly, SkipPolicy::SampleThenLeap] {
+            if leaping == Leaping::None && policy == SkipPolicy::SampleThenLeap {
+                continue;
+            }
+            let mut config = config.clone();
+            config.skip.policy = policy;
+            let renderer = FixedRenderer::new(&volume, &tf, &settings, &config, leaping).unwrap();
+            let mut memory = SdramMemory::new(&config.memory, &config.sdram, volume.dims, 100.0);
+            let cycle = simulate(
+                &renderer,
+                &cam,
+                &renderer.skipper(),
+                &mut memory,
+                &config,
+                true,
+                None,
+            )
+            .unwrap();
+            let functional = renderer.render(&cam);
+            let what = format!("{name} {view:?} {leaping:?} {policy:?}");
+            assert!(cycle.frame.pixels == functional.pixels, "{what}");
+            let (s, f) = (&cycle.stats, functional.stats());
+            assert_eq!(s.composited, f.samples, "{what}");
+            if ert.is_none() {
+                assert_eq!(
+                    (s.steps, s.samples, s.leaps, s.leap_samples),
+                    (f.steps(), f.samples, f.leaps, f.leap_samples),
+                    "{what}"
+                );
+            }
+            assert!(s.cycles >= s.steps);
+        }
     }
 }

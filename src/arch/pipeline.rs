@@ -30,7 +30,7 @@ use crate::camera::Camera;
 use crate::config::HardwareConfig;
 use crate::error::{Error, Result};
 use crate::functional::arith::Accumulator;
-use crate::functional::leaping::{Action, SpaceSkipper};
+use crate::functional::leaping::SpaceSkipper;
 use crate::functional::renderer::FixedRenderer;
 use crate::render::{Frame, RayRecord};
 
@@ -53,8 +53,12 @@ pub struct CycleStats {
     pub cycles: u64,
     /// Issue slots used: samples + leaps (one per cycle at most).
     pub steps: u64,
+    /// Samples issued (memory requests), leap samples included.
     pub samples: u64,
+    /// Steps that issued no sample (leap-only leaps).
     pub leaps: u64,
+    /// Samples followed by a leap (`skip.policy = "sample-then-leap"`); included in `samples`.
+    pub leap_samples: u64,
     /// Samples composited (in ray order).
     pub composited: u64,
     /// Samples issued after their ray reached the ERT threshold, discarded at compositing.
@@ -417,6 +421,7 @@ enum Stall {
 #[derive(Clone, Copy, Debug)]
 struct Issued {
     ray_id: usize,
+    /// A leap-only step, or a sample followed by a leap.
     leap: bool,
 }
 
@@ -442,36 +447,35 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
     let slot = queue.slot_mut(index).expect("selected slot");
     let remaining = slot.ray.samples as u64 - slot.k;
     let ray_id = slot.ray_id;
-    let action = skipper.decide(slot.pos, &slot.ray);
-    let (new_k, new_pos) = match action {
-        Action::Sample => {
-            if buffer.is_full() {
-                return Err(Stall::BufferFull);
-            }
-            // The tag is the compositing-buffer entry the sample will occupy.
-            let tag = buffer.next_free().expect("buffer has room: checked above");
-            let request = SampleRequest {
-                tag: tag as u64,
-                base: renderer.base_voxel(slot.pos),
-            };
-            if !memory.try_push(request, now) {
-                return Err(Stall::Memory);
-            }
-            let id = buffer.reserve(slot.ray_id, slot.k, slot.pos);
-            debug_assert_eq!(id, Some(tag));
-            slot.samples_issued += 1;
-            records[slot.ray_id].samples += 1;
-            stats.samples += 1;
-            (slot.k + 1, add_steps(slot.pos, slot.ray.step, 1))
+    // The same step the functional model takes at this position (sample or not, advance).
+    let step = skipper.decide(slot.pos, &slot.ray).within(remaining);
+    if step.sample {
+        if buffer.is_full() {
+            return Err(Stall::BufferFull);
         }
-        Action::Leap(n) => {
-            let n = n.min(remaining);
-            records[slot.ray_id].leaps += 1;
-            records[slot.ray_id].skipped += n as u32;
-            stats.leaps += 1;
-            (slot.k + n, add_steps(slot.pos, slot.ray.step, n))
+        // The tag is the compositing-buffer entry the sample will occupy.
+        let tag = buffer.next_free().expect("buffer has room: checked above");
+        let request = SampleRequest {
+            tag: tag as u64,
+            base: renderer.base_voxel(slot.pos),
+        };
+        if !memory.try_push(request, now) {
+            return Err(Stall::Memory);
         }
-    };
+        let id = buffer.reserve(slot.ray_id, slot.k, slot.pos);
+        debug_assert_eq!(id, Some(tag));
+        slot.samples_issued += 1;
+    }
+    step.record(&mut records[slot.ray_id]);
+    stats.samples += step.sample as u64;
+    stats.leaps += !step.sample as u64;
+    stats.leap_samples += step.is_leap_sample() as u64;
+    // The skip unit carries P + advance·V back (a leap after a sample included) after its
+    // latency, exactly as for any other step.
+    let (new_k, new_pos) = (
+        slot.k + step.advance,
+        add_steps(slot.pos, slot.ray.step, step.advance),
+    );
     stats.steps += 1;
     slot.busy = true;
     skip.push(
@@ -485,7 +489,9 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
     queue.issued_from(index);
     Ok(Issued {
         ray_id,
-        leap: matches!(action, Action::Leap(_)),
+        // For the waveform: the occupancy lookup found an empty sub-cube and the ray leaps
+        // (with or without a sample first).
+        leap: !step.sample || step.is_leap_sample(),
     })
 }
 

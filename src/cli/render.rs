@@ -56,13 +56,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let stats = &report.stats;
     let m = &report.measurements;
     println!(
-        "{} ({} model, {}): {} rays, {} hit, {} samples, {} leaps, {} terminated early{}, {:.3} s ({:.1} M samples/s) -> {}",
+        "{} ({} model, {}): {} rays, {} hit, {} samples ({} leap samples), {} leaps, {} terminated early{}, {:.3} s ({:.1} M samples/s) -> {}",
         report.volume,
         model.name(),
         leaping_text(&report.leaping),
         stats.rays,
         stats.rays_hit,
         m.samples,
+        m.leap_samples,
         m.leaps,
         m.rays_terminated_early,
         m.frame_time_ns

@@ -85,7 +85,7 @@ pub fn run(args: SimArgs) -> Result<()> {
     };
     println!(
         "{}: {} cycles = {:.3} ms/frame = {:.1} fps at {} MHz; {}, {} ray selection, ERT {}; \
-         {} steps ({} samples, {} leaps), {} discarded after ERT{memory_line}; \
+         {} steps ({} samples of which {} leap samples, {} leaps), {} discarded after ERT{memory_line}; \
          stalls: queue empty {}, skip busy {}, memory {}, buffer full {}; {:.1} M cycles/s simulated",
         report.volume,
         cycles,
@@ -97,6 +97,7 @@ pub fn run(args: SimArgs) -> Result<()> {
         if config.compositing.ert { "on" } else { "off" },
         m.steps,
         m.samples,
+        m.leap_samples,
         m.leaps,
         s.discarded_after_ert,
         stalls.ray_queue_empty,

@@ -1,14 +1,14 @@
 //! The functional fixed-point renderer: per ray, set up in fixed point, then at each position
 //! ask the space-skipping strategy whether to sample or leap, and composite the samples with
-//! the fixed-point arithmetic of `arith`. It counts steps (samples + leaps); the published cost
-//! is one step per 12.5 ns (`clock.step_time_ns`).
+//! the fixed-point arithmetic of `arith`. It counts steps (samples + leaps, one issue slot
+//! each); the published cost is one step per 12.5 ns (`clock.step_time_ns`).
 
 use super::arith::{interpolate, Accumulator, ClassificationTable, Compositor, Neighbourhood};
-use super::leaping::{Action, ConfiguredSkipper, NoSkipping, OccupancyLeaping, SpaceSkipper};
+use super::leaping::{ConfiguredSkipper, NoSkipping, OccupancyLeaping, SpaceSkipper};
 use super::setup::{check_widths, setup_ray, FixedRay};
 use super::Widths;
 use crate::camera::Camera;
-use crate::config::HardwareConfig;
+use crate::config::{HardwareConfig, SkipPolicy};
 use crate::error::Result;
 use crate::occupancy::{check_subcube_size, OccupancyKind, OccupancyMap};
 use crate::render::{render_frame, Frame, RayRecord, RenderSettings};
@@ -49,6 +49,8 @@ pub struct FixedRenderer<'a> {
     pub compositor: Compositor,
     pub settings: RenderSettings,
     pub leaping: Leaping,
+    /// What a step in an empty sub-cube does (`skip.policy`); no effect without leaping.
+    pub skip_policy: SkipPolicy,
     pub map: Option<OccupancyMap>,
     /// Per-voxel quantised gradients, present when shading.
     pub gradients: Option<GradientVolume>,
@@ -108,6 +110,7 @@ impl<'a> FixedRenderer<'a> {
             compositor,
             settings: settings.clone(),
             leaping,
+            skip_policy: config.skip.policy,
             map,
         })
     }
@@ -116,7 +119,7 @@ impl<'a> FixedRenderer<'a> {
     pub fn skipper(&self) -> ConfiguredSkipper<'_> {
         match (&self.map, self.leaping) {
             (Some(map), Leaping::Occupancy { hierarchy, .. }) => ConfiguredSkipper::Occupancy(
-                OccupancyLeaping::new(map, hierarchy, self.widths.skip()),
+                OccupancyLeaping::new(map, hierarchy, self.skip_policy, self.widths.skip()),
             ),
             _ => ConfiguredSkipper::None(NoSkipping),
         }
@@ -171,7 +174,8 @@ impl<'a> FixedRenderer<'a> {
         }
     }
 
-    /// Marches one ray: sample or leap at each position, until the last position or ERT.
+    /// Marches one ray: at each position the skipper's step (sample or not, then advance),
+    /// until the last position or ERT.
     pub fn cast<S: SpaceSkipper>(&self, ray: &FixedRay, skipper: &S) -> ([u8; 4], RayRecord) {
         let mut record = RayRecord {
             hit: ray.samples > 0,
@@ -184,31 +188,20 @@ impl<'a> FixedRenderer<'a> {
         let mut k: u64 = 0;
         let n = ray.samples as u64;
         while k < n {
-            match skipper.decide(pos, ray) {
-                Action::Sample => {
-                    record.samples += 1;
-                    let terminated = self
-                        .compositor
-                        .composite(&mut acc, self.classify(pos, ray.light));
-                    k += 1;
-                    if terminated {
-                        record.terminated_early = k < n;
-                        break;
-                    }
-                    for a in 0..3 {
-                        pos[a] += ray.step[a];
-                    }
-                }
-                Action::Leap(steps) => {
-                    // A leap past the ray's last position simply ends the ray.
-                    let steps = steps.min(n - k);
-                    record.leaps += 1;
-                    record.skipped += steps as u32;
-                    k += steps;
-                    for a in 0..3 {
-                        pos[a] += steps as i64 * ray.step[a];
-                    }
-                }
+            let step = skipper.decide(pos, ray).within(n - k);
+            step.record(&mut record);
+            if step.sample
+                && self
+                    .compositor
+                    .composite(&mut acc, self.classify(pos, ray.light))
+            {
+                // Early when positions remained after this one (as the cycle model counts).
+                record.terminated_early = k + 1 < n;
+                break;
+            }
+            k += step.advance;
+            for a in 0..3 {
+                pos[a] += step.advance as i64 * ray.step[a];
             }
         }
         (self.compositor.finish(&acc), record)

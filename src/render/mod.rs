@@ -62,12 +62,16 @@ impl RenderSettings {
 pub struct RayRecord {
     /// The ray meets the volume's sampling box and has at least one sample inside it.
     pub hit: bool,
-    /// Samples taken (interpolated, classified and composited).
+    /// Samples taken (interpolated, classified and composited), leap samples included.
     pub samples: u32,
-    /// Leap steps: positions where the ray took no sample and jumped ahead (fixed-point model).
+    /// Leap steps: issue slots in which the ray took no sample and jumped ahead (fixed-point
+    /// model, `skip.policy = "leap-only"`; always 0 with "sample-then-leap").
     pub leaps: u32,
-    /// Sample positions passed over by leaps.
+    /// Sample positions passed over by leaps (never sampled).
     pub skipped: u32,
+    /// Samples followed by a leap (`skip.policy = "sample-then-leap"`: the sample taken in an
+    /// empty sub-cube before leaping on); included in `samples`.
+    pub leap_samples: u32,
     /// Index k of the first sample (t = k·S) and one past the last; equal when no sample.
     pub first_sample: i64,
     pub end_sample: i64,
@@ -87,11 +91,14 @@ pub struct FrameStats {
     pub leaps: u64,
     /// Sample positions passed over by leaps.
     pub skipped: u64,
+    /// Samples followed by a leap (sample-then-leap); included in `samples`.
+    pub leap_samples: u64,
     pub rays_terminated_early: u64,
 }
 
 impl FrameStats {
-    /// Issue steps: one per sample and one per leap (the published cost unit).
+    /// Issue steps: one per sample and one per leap (the published cost unit). A leap that
+    /// follows a sample (sample-then-leap) costs no slot of its own.
     pub fn steps(&self) -> u64 {
         self.samples + self.leaps
     }
@@ -106,6 +113,7 @@ impl FrameStats {
             s.samples += r.samples as u64;
             s.leaps += r.leaps as u64;
             s.skipped += r.skipped as u64;
+            s.leap_samples += r.leap_samples as u64;
             s.rays_terminated_early += r.terminated_early as u64;
         }
         s
@@ -136,13 +144,13 @@ impl Frame {
             use std::io::Write;
             writeln!(
                 w,
-                "px,py,hit,samples,leaps,skipped,first_sample,end_sample,t_enter,t_exit,terminated_early"
+                "px,py,hit,samples,leaps,skipped,first_sample,end_sample,t_enter,t_exit,terminated_early,leap_samples"
             )?;
             for (i, r) in self.rays.iter().enumerate() {
                 let (px, py) = (i as u32 % self.width, i as u32 / self.width);
                 writeln!(
                     w,
-                    "{px},{py},{},{},{},{},{},{},{},{},{}",
+                    "{px},{py},{},{},{},{},{},{},{},{},{},{}",
                     r.hit as u8,
                     r.samples,
                     r.leaps,
@@ -151,7 +159,8 @@ impl Frame {
                     r.end_sample,
                     r.t_enter,
                     r.t_exit,
-                    r.terminated_early as u8
+                    r.terminated_early as u8,
+                    r.leap_samples
                 )?;
             }
             Ok(())

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use glam::Vec3;
 use vizsim::camera::{Camera, Projection, View};
-use vizsim::config::HardwareConfig;
+use vizsim::config::{HardwareConfig, SkipPolicy};
 use vizsim::functional::renderer::{FixedRenderer, Leaping};
 use vizsim::occupancy::OccupancyKind;
 use vizsim::render::{Frame, RenderSettings};
@@ -87,8 +87,21 @@ pub fn render_fixed(
     settings: &RenderSettings,
     leaping: Leaping,
 ) -> Frame {
+    render_fixed_with(volume, tf, camera, settings, leaping, SkipPolicy::LeapOnly)
+}
+
+/// `render_fixed` with a given `skip.policy`.
+pub fn render_fixed_with(
+    volume: &Volume,
+    tf: &TransferFunction,
+    camera: &Camera,
+    settings: &RenderSettings,
+    leaping: Leaping,
+    policy: SkipPolicy,
+) -> Frame {
     let mut config = HardwareConfig::default_config();
     config.occupancy.sram_bits = 1 << 24;
+    config.skip.policy = policy;
     FixedRenderer::new(volume, tf, settings, &config, leaping)
         .unwrap()
         .render(camera)
@@ -103,8 +116,12 @@ pub fn views() -> Vec<(View, Projection)> {
     ]
 }
 
-/// One leaping configuration's image and steps against the plain fixed-point render: the
-/// pixels must be identical, and no ray may take more steps than without leaping.
+/// One leaping configuration's image and steps against the plain fixed-point render, with both
+/// skip policies: the pixels must be identical, and no ray may take more steps than without
+/// leaping. Between the policies, per ray: sample-then-leap visits the same positions (the leap
+/// at a position does not depend on the policy, and a sample in an empty sub-cube has zero
+/// opacity, so it neither changes the pixel nor ERT), so it takes exactly as many steps; its
+/// samples are leap-only's samples plus one per leap, and it never leaps without a sample.
 pub fn assert_leap_matches(
     volume: &Volume,
     tf: &TransferFunction,
@@ -114,19 +131,47 @@ pub fn assert_leap_matches(
     leaping: Leaping,
     what: &str,
 ) {
-    let leap = render_fixed(volume, tf, cam, settings, leaping);
-    assert!(
-        leap.pixels == plain.pixels,
-        "image differs: {what} {leaping:?}"
+    let leap_only = render_fixed(volume, tf, cam, settings, leaping);
+    let then_leap = render_fixed_with(
+        volume,
+        tf,
+        cam,
+        settings,
+        leaping,
+        SkipPolicy::SampleThenLeap,
     );
-    for (l, p) in leap.rays.iter().zip(&plain.rays) {
+    for (leap, policy) in [
+        (&leap_only, SkipPolicy::LeapOnly),
+        (&then_leap, SkipPolicy::SampleThenLeap),
+    ] {
         assert!(
-            l.samples + l.leaps <= p.samples,
-            "leaping cost more steps: {what} {leaping:?}"
+            leap.pixels == plain.pixels,
+            "image differs: {what} {leaping:?} {policy:?}"
         );
-        assert_eq!(l.terminated_early, p.terminated_early, "{what} {leaping:?}");
-        // Leaps cover exactly the positions the plain ray sampled in vain.
-        assert_eq!(l.samples + l.skipped, p.samples, "{what} {leaping:?}");
+        for (l, p) in leap.rays.iter().zip(&plain.rays) {
+            assert!(
+                l.samples + l.leaps <= p.samples,
+                "leaping cost more steps: {what} {leaping:?} {policy:?}"
+            );
+            assert_eq!(
+                l.terminated_early, p.terminated_early,
+                "{what} {leaping:?} {policy:?}"
+            );
+            // Leaps cover exactly the positions the plain ray sampled in vain.
+            assert_eq!(
+                l.samples + l.skipped,
+                p.samples,
+                "{what} {leaping:?} {policy:?}"
+            );
+        }
+    }
+    for (o, t) in leap_only.rays.iter().zip(&then_leap.rays) {
+        let why = format!("{what} {leaping:?}: leap-only {o:?}, sample-then-leap {t:?}");
+        assert_eq!(o.leap_samples, 0, "{why}");
+        assert_eq!(t.leaps, 0, "{why}");
+        assert_eq!(t.samples, o.samples + o.leaps, "{why}");
+        assert_eq!(t.skipped, o.skipped - o.leaps, "{why}");
+        assert!(t.leap_samples <= o.leaps, "{why}");
     }
 }
 
