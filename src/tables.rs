@@ -205,6 +205,8 @@ pub struct Table {
     /// Cells (row, column) whose leaping map does not fit the default SRAM (run with more).
     pub raised_sram: BTreeSet<(usize, usize)>,
     pub stand_ins: BTreeSet<String>,
+    /// The command that made the table (a line under it), when known.
+    pub made_by: Option<String>,
 }
 
 /// Builds the table of `metric` for the lines of one model. Every field that varies among the
@@ -322,29 +324,60 @@ pub fn build(
             .collect(),
         raised_sram,
         stand_ins,
+        made_by: None,
     })
 }
 
-fn format_value(v: f64) -> String {
-    let a = v.abs();
-    if a >= 1e6 {
-        format!("{:.2} M", v / 1e6)
-    } else if a >= 1000.0 {
-        format!("{:.0}", v)
-    } else if a >= 100.0 {
-        format!("{:.1}", v)
-    } else {
-        format!("{:.2}", v)
+/// How the cells of one column are written, chosen from the column's largest magnitude so that
+/// a column reads one way (all in millions, or all with the same decimals).
+#[derive(Clone, Copy)]
+enum NumberFormat {
+    Millions,
+    Whole,
+    Decimals(usize),
+}
+
+impl NumberFormat {
+    fn for_values(values: impl Iterator<Item = f64>) -> NumberFormat {
+        let largest = values.map(f64::abs).fold(0.0, f64::max);
+        if largest >= 1e6 {
+            NumberFormat::Millions
+        } else if largest >= 1000.0 {
+            NumberFormat::Whole
+        } else if largest >= 100.0 {
+            NumberFormat::Decimals(1)
+        } else {
+            NumberFormat::Decimals(2)
+        }
+    }
+
+    fn write(self, v: f64) -> String {
+        match self {
+            NumberFormat::Millions => format!("{:.2} M", v / 1e6),
+            NumberFormat::Whole => format!("{v:.0}"),
+            NumberFormat::Decimals(d) => format!("{v:.d$}"),
+        }
     }
 }
 
+/// Fields every result line has; any other column field is a swept one and its name goes into
+/// the column headers.
+const RESULT_FIELDS: [&str; 5] = ["dataset", "tf", "mode", "model", "frame"];
+
 impl Table {
-    /// Row-field names, then the column labels.
+    /// Row-field names, then the column labels (`field = value` for a swept field).
     fn header(&self) -> Vec<String> {
+        let swept = !RESULT_FIELDS.contains(&self.column_field.as_str());
         self.row_fields
             .iter()
             .cloned()
-            .chain(self.columns.iter().cloned())
+            .chain(self.columns.iter().map(|c| {
+                if swept {
+                    format!("{} = {c}", self.column_field)
+                } else {
+                    c.clone()
+                }
+            }))
             .collect()
     }
 
@@ -365,6 +398,9 @@ impl Table {
                 .collect::<Vec<_>>()
                 .join("|")
         );
+        let formats: Vec<NumberFormat> = (0..self.columns.len())
+            .map(|ci| NumberFormat::for_values(self.rows.iter().filter_map(|(_, v)| v[ci])))
+            .collect();
         for (ri, (labels, values)) in self.rows.iter().enumerate() {
             let cells: Vec<String> = values
                 .iter()
@@ -376,7 +412,7 @@ impl Table {
                         } else {
                             ""
                         };
-                        format!("{}{mark}", format_value(*v))
+                        format!("{}{mark}", formats[ci].write(*v))
                     }
                     None => "–".into(),
                 })
@@ -398,6 +434,9 @@ impl Table {
         }
         if !self.stand_ins.is_empty() {
             s += "\n† stand-in dataset (see docs/results.md): not the published data.\n";
+        }
+        if let Some(command) = &self.made_by {
+            s += &format!("\nMade by `{command}`.\n");
         }
         s
     }

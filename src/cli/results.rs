@@ -125,6 +125,7 @@ pub fn write_tables(
     } else {
         metrics.to_vec()
     };
+    let made_by = super::invocation();
     let mut all_markdown = String::new();
     for model in ["step", "cycle"] {
         let of_model: Vec<&serde_json::Value> = lines
@@ -138,8 +139,10 @@ pub fn write_tables(
             if !of_model.iter().any(|l| metric.value(l).is_some()) {
                 continue;
             }
-            let clock = match model {
-                "step" => "step model, published cost 12.5 ns per step",
+            // Skippable sub-cubes are a property of the map, not of a model's timing.
+            let clock = match (metric, model) {
+                (Metric::Skippable, _) => "occupancy map",
+                (_, "step") => "step model, published cost 12.5 ns per step",
                 _ => "cycle-accurate model at its clock",
             };
             let frames: std::collections::BTreeSet<u64> = of_model
@@ -153,7 +156,8 @@ pub fn write_tables(
                 if frames.len() == 1 { "" } else { "s" }
             );
             let rows_here: Vec<String> = rows.iter().filter(|r| *r != "model").cloned().collect();
-            let table = tables::build(&of_model, metric, &rows_here, columns, title)?;
+            let mut table = tables::build(&of_model, metric, &rows_here, columns, title)?;
+            table.made_by = Some(made_by.clone());
             let stem = out.join(format!("{model}-{}", metric.file_name()));
             let md = table.markdown();
             vizsim::output::write_atomically(&stem.with_extension("md"), |w| {
@@ -163,9 +167,7 @@ pub fn write_tables(
             vizsim::output::write_atomically(&stem.with_extension("csv"), |w| {
                 std::io::Write::write_all(w, csv.as_bytes())
             })?;
-            if metric == Metric::Fps {
-                println!("{md}");
-            }
+            println!("{md}");
             all_markdown += &md;
             all_markdown += "\n";
         }
