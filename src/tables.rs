@@ -250,12 +250,16 @@ pub fn build(
             )));
         }
     }
+    // Means are sums over lines; sum them in key order, not in the order the runs finished, so
+    // that the same results give the same digits however the sweep was scheduled.
+    let mut lines = lines.to_vec();
+    lines.sort_by_key(|l| field_text(l, "key").unwrap_or_default());
     type Key = Vec<(i64, String)>;
     /// Sum, count, and whether any line ran with the SRAM raised.
     type Cell = (f64, u32, bool);
     let mut cells: BTreeMap<(Key, (i64, String)), Cell> = BTreeMap::new();
     let mut stand_ins = BTreeSet::new();
-    for line in lines {
+    for line in &lines {
         let Some(value) = metric.value(line) else {
             continue;
         };

@@ -49,7 +49,11 @@ fn assert_same_files(committed: &Path, fresh: &Path, extensions: &[&str], only_s
         names
     };
     let (old, new) = (list(committed), list(fresh));
-    assert!(!new.is_empty(), "nothing regenerated in {}", fresh.display());
+    assert!(
+        !new.is_empty(),
+        "nothing regenerated in {}",
+        fresh.display()
+    );
     assert_eq!(old, new, "the files of {}", committed.display());
     for name in &old {
         let a = std::fs::read_to_string(committed.join(name)).unwrap();

@@ -91,6 +91,8 @@ impl ResultsArgs {
                 .is_none_or(|m| l.get("model").and_then(|v| v.as_str()) == Some(m));
             frame_kept && model_kept
         });
+        // Key order, not completion order: tables and charts sum in this order.
+        lines.sort_by(|a, b| a["key"].as_str().cmp(&b["key"].as_str()));
         Ok(lines)
     }
 }
