@@ -13,6 +13,7 @@ pub mod experiment;
 pub mod figures;
 pub mod fixed;
 pub mod functional;
+pub mod leapvalues;
 pub mod occupancy;
 pub mod output;
 pub mod plot;
