@@ -14,3 +14,6 @@
 
 pub mod edt;
 mod lines;
+pub mod segment;
+
+pub use segment::{range_from_fraction, segment, Region, Segmentation, SegmentationParams};
