@@ -12,8 +12,10 @@
 //! `preprocess` runs steps 1–4 and collects the times. The renderer's and the cycle model's use
 //! of these structures is not part of this module.
 
+pub mod classify;
 pub mod edt;
 mod lines;
 pub mod segment;
 
+pub use classify::{classify, Classification, GuardDistance, VoxelClass};
 pub use segment::{range_from_fraction, segment, Region, Segmentation, SegmentationParams};
