@@ -14,8 +14,92 @@
 
 pub mod classify;
 pub mod edt;
+pub mod leap;
 mod lines;
 pub mod segment;
+pub mod word;
+
+use std::time::Duration;
 
 pub use classify::{classify, Classification, GuardDistance, VoxelClass};
+pub use leap::{leap_steps, leap_values, verify_leap_values, LeapValues};
 pub use segment::{range_from_fraction, segment, Region, Segmentation, SegmentationParams};
+pub use word::{encode_volume, DecodedWord, EncodedVolume, VolumeWord};
+
+use crate::error::Result;
+use crate::volume::Volume;
+
+/// Everything steps 1–4 need.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct LeapValueParams {
+    pub segmentation: SegmentationParams,
+    /// The largest sample spacing (voxels) rays will use: sets the guard distance.
+    pub max_spacing: f32,
+    /// The sample spacing the leap values count steps of (<= `max_spacing`).
+    pub spacing: f32,
+    pub layout: VolumeWord,
+}
+
+/// Wall time of each step.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct StepTimes {
+    pub segmentation: Duration,
+    pub classification: Duration,
+    pub leap_values: Duration,
+    pub encoding: Duration,
+}
+
+impl StepTimes {
+    pub fn total(&self) -> Duration {
+        self.segmentation + self.classification + self.leap_values + self.encoding
+    }
+}
+
+/// The results of steps 1–4.
+#[derive(Clone, Debug)]
+pub struct Preprocessed {
+    pub segmentation: Segmentation,
+    pub classification: Classification,
+    pub leap_values: LeapValues,
+    pub encoded: EncodedVolume,
+}
+
+impl Preprocessed {
+    pub fn times(&self) -> StepTimes {
+        StepTimes {
+            segmentation: self.segmentation.elapsed,
+            classification: self.classification.elapsed,
+            leap_values: self.leap_values.elapsed,
+            encoding: self.encoded.elapsed,
+        }
+    }
+}
+
+/// Runs steps 1–4. Every parameter is checked before any work starts.
+pub fn preprocess(volume: &Volume, params: &LeapValueParams) -> Result<Preprocessed> {
+    params.segmentation.validate(volume)?;
+    params.layout.check_volume(volume)?;
+    let guard = GuardDistance::for_max_spacing(params.max_spacing)?;
+    guard.check_spacing(params.spacing)?;
+    let segmentation = segment(volume, params.segmentation)?;
+    let classification = classify(&segmentation, guard);
+    let leap_values = leap_values(
+        &segmentation,
+        &classification,
+        params.spacing,
+        &params.layout,
+    )?;
+    let encoded = encode_volume(
+        volume,
+        &segmentation,
+        &classification,
+        &leap_values,
+        params.layout,
+    )?;
+    Ok(Preprocessed {
+        segmentation,
+        classification,
+        leap_values,
+        encoded,
+    })
+}
