@@ -13,6 +13,7 @@
 //! of these structures is not part of this module.
 
 pub mod classify;
+pub mod distance;
 pub mod edt;
 pub mod leap;
 mod lines;
@@ -22,6 +23,7 @@ pub mod word;
 use std::time::Duration;
 
 pub use classify::{classify, Classification, GuardDistance, VoxelClass};
+pub use distance::{distance_steps, distance_volume, verify_distance_volume, DistanceVolume};
 pub use leap::{leap_steps, leap_values, verify_leap_values, LeapValues};
 pub use segment::{range_from_fraction, segment, Region, Segmentation, SegmentationParams};
 pub use word::{encode_volume, DecodedWord, EncodedVolume, VolumeWord};
