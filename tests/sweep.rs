@@ -124,6 +124,18 @@ fn bad_experiments_fail_before_any_run_naming_axis_and_value() {
             ),
             "occupancy.subcube",
         ),
+        // Issue 17: an empty zip group panicked; an empty [[exclude]] excluded everything.
+        (
+            ("name = \"ci-tiny\"", "name = \"ci-tiny\"\nzip = [[]]"),
+            "a zip group is empty",
+        ),
+        (
+            (
+                "\"ray_queue.rays\" = [8, 16]",
+                "\"ray_queue.rays\" = [8, 16]\n[[exclude]]",
+            ),
+            "empty [[exclude]]",
+        ),
     ] {
         let exp = write_experiment(&dir, &TINY.replace(edit.0, edit.1));
         let out = dir.join("out");
@@ -317,4 +329,33 @@ fn a_second_sweep_into_a_busy_folder_is_refused() {
         "--dry-run",
     ]);
     assert!(r.status.success());
+}
+
+#[test]
+fn repeated_runs_are_listed_once_and_said_so() {
+    let dir = temp_dir("dupes");
+    let text = TINY
+        .replace("select = [0, 5, 11]", "select = [0, 5, 5, 11]")
+        .replace(
+            "\"ray_queue.rays\" = [8, 16]",
+            "\"ray_queue.rays\" = [8, 16, 16]",
+        );
+    let exp = write_experiment(&dir, &text);
+    let once =
+        vizsim::experiment::spec::load(&write_experiment(&temp_dir("dupes-once"), TINY), None)
+            .unwrap();
+    let twice = vizsim::experiment::spec::load(&exp, None).unwrap();
+    assert!(twice.duplicates > 0);
+    let keys = |e: &vizsim::experiment::spec::Expansion| {
+        e.runs.iter().map(|r| r.key.clone()).collect::<Vec<_>>()
+    };
+    assert_eq!(keys(&once), keys(&twice), "the same runs, each once");
+    let out = vizsim(&[
+        "sweep",
+        exp.to_str().unwrap(),
+        "--out",
+        dir.join("o").to_str().unwrap(),
+        "--dry-run",
+    ]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("listed more than once"));
 }

@@ -90,6 +90,12 @@ pub fn run(args: SweepArgs) -> Result<()> {
         duration_text(estimate(spec::Model::Step)),
         duration_text(estimate(spec::Model::Cycle)),
     );
+    if expansion.duplicates > 0 {
+        println!(
+            "  {} runs are listed more than once (repeated datasets, frames or axis values): each runs once",
+            expansion.duplicates
+        );
+    }
     for s in &expansion.skipped {
         println!("  left out: {} {}: {}", s.dataset, s.mode, s.reason);
     }

@@ -194,6 +194,8 @@ pub struct Expansion {
     pub source: String,
     pub runs: Vec<RunSpec>,
     pub skipped: Vec<Skipped>,
+    /// Runs listed more than once in the file, dropped (each runs once).
+    pub duplicates: usize,
     pub volumes: BTreeMap<String, Arc<Volume>>,
 }
 
@@ -338,6 +340,12 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
     let mut groups: Vec<Vec<usize>> = Vec::new();
     let mut zipped = vec![false; axes.len()];
     for group in &experiment.zip {
+        if group.is_empty() {
+            return Err(bad(
+                "zip",
+                "a zip group is empty; list the axes that advance together".into(),
+            ));
+        }
         let mut members = Vec::new();
         for path in group {
             let i = axes
@@ -514,6 +522,13 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
         }
     }
     for rule in &experiment.exclude {
+        if rule.is_empty() {
+            return Err(bad(
+                "exclude",
+                "an empty [[exclude]] table would exclude every run; give the fields to match"
+                    .into(),
+            ));
+        }
         for k in rule.keys() {
             let known = ["dataset", "tf", "mode", "model"].contains(&k.as_str())
                 || axes.iter().any(|(p, _)| p == k);
@@ -525,14 +540,35 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
             }
         }
     }
+    // The same run listed twice (a repeated dataset, frame or axis value; 12.5 and 12.50 are
+    // one value) has one key: keep its first occurrence.
+    let listed = runs.len();
+    let mut seen = std::collections::HashSet::new();
+    runs.retain(|r| seen.insert(r.key.clone()));
+    for (i, run) in runs.iter_mut().enumerate() {
+        run.index = i;
+    }
+    let duplicates = listed - runs.len();
     if runs.is_empty() {
-        return Err(bad("exclude", "every run is excluded or skipped".into()));
+        let why = if skipped.is_empty() {
+            "every run is excluded by `exclude`".to_string()
+        } else {
+            format!(
+                "no run is left: {} points were left out for sub-cube size or SRAM fit (first: {} {}: {}), the rest excluded",
+                skipped.len(),
+                skipped[0].dataset,
+                skipped[0].mode,
+                skipped[0].reason
+            )
+        };
+        return Err(bad("exclude", why));
     }
     Ok(Expansion {
         experiment,
         source: source.to_string(),
         runs,
         skipped,
+        duplicates,
         volumes,
     })
 }
