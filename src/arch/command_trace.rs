@@ -69,15 +69,41 @@ impl Sink {
             Sink::Gzip(g) => g.write_all(bytes),
         }
     }
+
+    /// Completes the stream (the gzip trailer) and gives the file its name.
+    fn commit(self, path: &Path) -> Result<()> {
+        match self {
+            Sink::Plain(mut f) => f.commit(),
+            Sink::Gzip(g) => g.finish().map_err(|e| Error::io(path, e))?.commit(),
+        }
+    }
 }
 
-/// Lines are collected in a buffer of this size before they go to the file (or compressor).
-const CHUNK: usize = 1 << 16;
+/// Lines are collected in chunks of this size, which a writer thread compresses (`.gz`) and
+/// writes, so that neither compression nor system calls hold up the simulation.
+const CHUNK: usize = 1 << 18;
+/// Chunks on their way to the writer thread at most (the memory a trace takes is about
+/// `(CHUNKS_IN_FLIGHT + 2) × CHUNK`, whatever its length).
+const CHUNKS_IN_FLIGHT: usize = 4;
+/// The longest command line: 20 + 10 + 4 + 4 × 10 digits or letters, 7 separators.
+const LINE_MAX: usize = 96;
+
+enum Message {
+    Chunk(Vec<u8>),
+    /// Everything is sent: complete the file and rename it.
+    Finish,
+}
 
 /// A command trace being written. Pass it to `pipeline::simulate_with`, then call `finish`.
 pub struct CommandTrace {
-    sink: Sink,
+    /// `CHUNK + LINE_MAX` bytes, the first `used` of them waiting for the writer.
     buf: Vec<u8>,
+    used: usize,
+    cycle_text: CycleText,
+    to_writer: Option<std::sync::mpsc::SyncSender<Message>>,
+    /// Written chunks coming back for reuse.
+    recycled: std::sync::mpsc::Receiver<Vec<u8>>,
+    writer: Option<std::thread::JoinHandle<Result<()>>>,
     path: PathBuf,
     window: Range<u64>,
     lines: u64,
@@ -95,21 +121,51 @@ impl CommandTrace {
     ) -> Result<CommandTrace> {
         let file = PendingFile::create(path)?;
         let gzip = path.extension().is_some_and(|e| e == "gz");
-        let sink = if gzip {
+        let mut sink = if gzip {
             Sink::Gzip(GzEncoder::new(file, Compression::fast()))
         } else {
             Sink::Plain(file)
         };
+        let (to_writer, chunks) = std::sync::mpsc::sync_channel::<Message>(CHUNKS_IN_FLIGHT);
+        let (give_back, recycled) = std::sync::mpsc::channel::<Vec<u8>>();
+        let thread_path = path.to_path_buf();
+        // The writer: a chunk at a time to the file; on `Finish` the file gets its name. If
+        // the trace is dropped (or the writer fails), the sink is dropped unfinished and the
+        // temporary file removed.
+        let writer = std::thread::Builder::new()
+            .name("command-trace".into())
+            .spawn(move || -> Result<()> {
+                for message in chunks {
+                    match message {
+                        Message::Chunk(chunk) => {
+                            sink.write_all(&chunk)
+                                .map_err(|e| Error::io(&thread_path, e))?;
+                            let _ = give_back.send(chunk);
+                        }
+                        Message::Finish => return sink.commit(&thread_path),
+                    }
+                }
+                Ok(())
+            })
+            .map_err(|e| Error::io(path, e))?;
         let mut trace = CommandTrace {
-            sink,
-            buf: Vec::with_capacity(CHUNK + 256),
+            buf: vec![0; CHUNK + LINE_MAX],
+            used: 0,
+            cycle_text: CycleText {
+                cycle: 0,
+                text: [0; 20],
+                len: 0,
+            },
+            to_writer: Some(to_writer),
+            recycled,
+            writer: Some(writer),
             path: path.to_path_buf(),
             window: window.clone().unwrap_or(0..u64::MAX),
             lines: 0,
             end: None,
         };
         let header = header_text(config, window);
-        trace.buf.extend_from_slice(header.as_bytes());
+        trace.push_bytes(header.as_bytes())?;
         Ok(trace)
     }
 
@@ -123,11 +179,20 @@ impl CommandTrace {
     /// ignore it.
     pub fn note(&mut self, text: &str) -> Result<()> {
         for line in text.lines() {
-            self.buf.extend_from_slice(b"# note: ");
-            self.buf.extend_from_slice(line.as_bytes());
-            self.buf.push(b'\n');
+            self.push_bytes(format!("# note: {line}\n").as_bytes())?;
         }
-        self.spill()
+        Ok(())
+    }
+
+    fn push_bytes(&mut self, bytes: &[u8]) -> Result<()> {
+        for piece in bytes.chunks(CHUNK) {
+            if self.used + piece.len() > self.buf.len() {
+                self.spill()?;
+            }
+            self.buf[self.used..self.used + piece.len()].copy_from_slice(piece);
+            self.used += piece.len();
+        }
+        Ok(())
     }
 
     /// Writes one command (ignored outside the window). Commands must come in cycle order.
@@ -136,33 +201,14 @@ impl CommandTrace {
         if !self.wants(c.cycle) {
             return Ok(());
         }
-        let b = &mut self.buf;
-        push_u64(b, c.cycle);
-        b.push(b',');
-        push_u64(b, c.module as u64);
-        b.push(b',');
-        b.extend_from_slice(c.kind.name().as_bytes());
-        b.push(b',');
-        if c.kind != CommandKind::Ref {
-            push_u64(b, c.bank as u64);
-            b.push(b',');
-            push_u64(b, c.row as u64);
-        } else {
-            b.push(b',');
-        }
-        b.push(b',');
-        if c.kind == CommandKind::Read {
-            push_u64(b, c.column as u64);
-            b.push(b',');
-            push_u64(b, c.tag as u64);
-        } else {
-            b.push(b',');
-        }
-        b.push(b'\n');
-        self.lines += 1;
-        if self.buf.len() >= CHUNK {
+        if self.used > CHUNK {
             self.spill()?;
         }
+        let out: &mut [u8; LINE_MAX] = (&mut self.buf[self.used..self.used + LINE_MAX])
+            .try_into()
+            .expect("CHUNK + LINE_MAX bytes");
+        self.used += format_line(out, c, &mut self.cycle_text);
+        self.lines += 1;
         Ok(())
     }
 
@@ -180,12 +226,48 @@ impl CommandTrace {
         &self.path
     }
 
+    /// Hands the buffer's lines to the writer thread.
+    #[cold]
     fn spill(&mut self) -> Result<()> {
-        self.sink
-            .write_all(&self.buf)
-            .map_err(|e| Error::io(&self.path, e))?;
-        self.buf.clear();
-        Ok(())
+        let next = self
+            .recycled
+            .try_recv()
+            .unwrap_or_else(|_| vec![0; CHUNK + LINE_MAX]);
+        let mut full = std::mem::replace(&mut self.buf, next);
+        self.buf.resize(CHUNK + LINE_MAX, 0);
+        full.truncate(self.used);
+        self.used = 0;
+        self.send(Message::Chunk(full))
+    }
+
+    fn send(&mut self, message: Message) -> Result<()> {
+        let sent = match &self.to_writer {
+            Some(to_writer) => to_writer.send(message).is_ok(),
+            None => false,
+        };
+        if sent {
+            return Ok(());
+        }
+        // The writer stopped: its error says why.
+        self.to_writer = None;
+        Err(self.join_writer().err().unwrap_or_else(|| {
+            Error::Invalid(format!(
+                "{}: the command trace's writer stopped",
+                self.path.display()
+            ))
+        }))
+    }
+
+    fn join_writer(&mut self) -> Result<()> {
+        match self.writer.take() {
+            Some(handle) => handle.join().unwrap_or_else(|_| {
+                Err(Error::Invalid(format!(
+                    "{}: the command trace's writer panicked",
+                    self.path.display()
+                )))
+            }),
+            None => Ok(()),
+        }
     }
 
     /// Writes the `# end:` line, completes the file and gives it its name. Returns the number
@@ -195,17 +277,21 @@ impl CommandTrace {
             Some(cycle) => format!("# end: cycle {cycle}, {} commands\n", self.lines),
             None => format!("# end: {} commands\n", self.lines),
         };
-        self.buf.extend_from_slice(end.as_bytes());
+        self.push_bytes(end.as_bytes())?;
         self.spill()?;
-        let path = self.path.clone();
-        match &mut self.sink {
-            Sink::Plain(f) => f.commit()?,
-            Sink::Gzip(g) => {
-                g.try_finish().map_err(|e| Error::io(&path, e))?;
-                g.get_mut().commit()?;
-            }
-        }
+        self.send(Message::Finish)?;
+        self.to_writer = None;
+        self.join_writer()?;
         Ok(self.lines)
+    }
+}
+
+impl Drop for CommandTrace {
+    /// An unfinished trace: the writer sees the channel close without `Finish` and removes the
+    /// temporary file; wait for it so that the file is gone when this returns.
+    fn drop(&mut self) {
+        self.to_writer = None;
+        let _ = self.join_writer();
     }
 }
 
@@ -265,19 +351,113 @@ fn header_text(config: &HardwareConfig, window: Option<Range<u64>>) -> String {
     h
 }
 
+/// The text of the last cycle written (most cycles have several commands).
+#[derive(Clone, Copy)]
+struct CycleText {
+    cycle: u64,
+    text: [u8; 20],
+    len: usize,
+}
+
+/// Writes the command's line into `out`; returns its length.
 #[inline]
-fn push_u64(buf: &mut Vec<u8>, mut v: u64) {
-    let mut digits = [0u8; 20];
-    let mut i = digits.len();
-    loop {
-        i -= 1;
-        digits[i] = b'0' + (v % 10) as u8;
-        v /= 10;
-        if v == 0 {
-            break;
-        }
+fn format_line(out: &mut [u8; LINE_MAX], c: &IssuedCommand, last: &mut CycleText) -> usize {
+    if last.cycle != c.cycle || last.len == 0 {
+        let len = put_u64(out, 0, c.cycle);
+        last.text[..len].copy_from_slice(&out[..len]);
+        last.len = len;
+        last.cycle = c.cycle;
+    } else {
+        out[..20].copy_from_slice(&last.text);
     }
-    buf.extend_from_slice(&digits[i..]);
+    let mut n = last.len;
+    out[n] = b',';
+    n = put_u64(out, n + 1, c.module as u64);
+    out[n] = b',';
+    n += 1;
+    // Five bytes copied whatever the name's length (a fixed-size copy, no call).
+    let (name, len): (&[u8; 5], usize) = match c.kind {
+        CommandKind::Act => (b"ACT, ", 4),
+        CommandKind::Read => (b"READ,", 5),
+        CommandKind::Pre => (b"PRE, ", 4),
+        CommandKind::Ref => (b"REF, ", 4),
+    };
+    out[n..n + 5].copy_from_slice(name);
+    n += len;
+    if c.kind != CommandKind::Ref {
+        n = put_u64(out, n, c.bank as u64);
+        out[n] = b',';
+        n = put_u64(out, n + 1, c.row as u64);
+    } else {
+        out[n] = b',';
+        n += 1;
+    }
+    out[n] = b',';
+    n += 1;
+    if c.kind == CommandKind::Read {
+        n = put_u64(out, n, c.column as u64);
+        out[n] = b',';
+        n = put_u64(out, n + 1, c.tag as u64);
+    } else {
+        out[n] = b',';
+        n += 1;
+    }
+    out[n] = b'\n';
+    n + 1
+}
+
+const DIGIT_PAIRS: &[u8; 200] = b"0001020304050607080910111213141516171819\
+2021222324252627282930313233343536373839\
+4041424344454647484950515253545556575859\
+6061626364656667686970717273747576777879\
+8081828384858687888990919293949596979899";
+
+/// Writes `v` in decimal at `out[at..]`; returns the index after it.
+#[inline(always)]
+fn put_u64(out: &mut [u8; LINE_MAX], at: usize, v: u64) -> usize {
+    // Modules, banks and tags are mostly one or two digits.
+    if v < 10 {
+        out[at] = b'0' + v as u8;
+        at + 1
+    } else if v < 100 {
+        put_pair(out, at, v as usize);
+        at + 2
+    } else if v < 1000 {
+        out[at] = b'0' + (v / 100) as u8;
+        put_pair(out, at + 1, (v % 100) as usize);
+        at + 3
+    } else if v < 10000 {
+        put_pair(out, at, (v / 100) as usize);
+        put_pair(out, at + 2, (v % 100) as usize);
+        at + 4
+    } else {
+        put_u64_long(out, at, v)
+    }
+}
+
+/// Writes `v` < 100 as two digits.
+#[inline(always)]
+fn put_pair(out: &mut [u8; LINE_MAX], at: usize, v: usize) {
+    out[at..at + 2].copy_from_slice(&DIGIT_PAIRS[2 * v..2 * v + 2]);
+}
+
+#[inline(never)]
+fn put_u64_long(out: &mut [u8; LINE_MAX], at: usize, mut v: u64) -> usize {
+    let len = v.checked_ilog10().map_or(1, |l| l as usize + 1);
+    let mut i = at + len;
+    while v >= 100 {
+        let d = (v % 100) as usize * 2;
+        v /= 100;
+        i -= 2;
+        out[i..i + 2].copy_from_slice(&DIGIT_PAIRS[d..d + 2]);
+    }
+    if v >= 10 {
+        let d = v as usize * 2;
+        out[i - 2..i].copy_from_slice(&DIGIT_PAIRS[d..d + 2]);
+    } else {
+        out[i - 1] = b'0' + v as u8;
+    }
+    at + len
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1077,5 +1257,62 @@ impl Checker {
             violations: self.violations,
             violation_count: self.violation_count,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lines_are_formatted_at_every_digit_count() {
+        let mut last = CycleText {
+            cycle: 0,
+            text: [0; 20],
+            len: 0,
+        };
+        let mut out = [0u8; LINE_MAX];
+        for v in [0u64, 9, 10, 99, 100, 999, 1000, 9999, 10000, 123_456_789] {
+            let v32 = v.min(u32::MAX as u64) as u32;
+            for (kind, want) in [
+                (
+                    CommandKind::Read,
+                    format!("{v},3,READ,{v32},{v32},{v32},{v32}\n"),
+                ),
+                (CommandKind::Act, format!("{v},3,ACT,{v32},{v32},,\n")),
+                (CommandKind::Pre, format!("{v},3,PRE,{v32},{v32},,\n")),
+                (CommandKind::Ref, format!("{v},3,REF,,,,\n")),
+            ] {
+                let c = IssuedCommand {
+                    cycle: v,
+                    module: 3,
+                    kind,
+                    bank: v32,
+                    row: v32,
+                    column: v32,
+                    tag: v32,
+                };
+                // Twice: the second line of a cycle reuses the cycle's text.
+                for _ in 0..2 {
+                    let n = format_line(&mut out, &c, &mut last);
+                    assert_eq!(std::str::from_utf8(&out[..n]).unwrap(), want);
+                }
+            }
+        }
+        let c = IssuedCommand {
+            cycle: u64::MAX,
+            module: u32::MAX,
+            kind: CommandKind::Read,
+            bank: u32::MAX,
+            row: u32::MAX,
+            column: u32::MAX,
+            tag: u32::MAX,
+        };
+        let n = format_line(&mut out, &c, &mut last);
+        let m = u32::MAX;
+        assert_eq!(
+            std::str::from_utf8(&out[..n]).unwrap(),
+            format!("{},{m},READ,{m},{m},{m},{m}\n", u64::MAX)
+        );
     }
 }
