@@ -647,6 +647,7 @@ fn waveform_commands_and_banks_match_the_command_trace() {
             let cmd = vcd.at_cycles(&format!("{scope}.cmd"), &time, window.clone());
             let bank = vcd.at_cycles(&format!("{scope}.bank"), &time, window.clone());
             let code = vcd.at_cycles(&format!("{scope}.command"), &time, window.clone());
+            let column = vcd.at_cycles(&format!("{scope}.column"), &time, window.clone());
             let bits: Vec<Vec<String>> = ["act", "read", "pre", "ref"]
                 .iter()
                 .map(|k| vcd.at_cycles(&format!("{scope}.{k}"), &time, window.clone()))
@@ -660,6 +661,7 @@ fn waveform_commands_and_banks_match_the_command_trace() {
                 let code = u64::from_str_radix(&code[i], 2).unwrap();
                 if cmd[i] == "NOP" {
                     assert!(on.is_empty() && code == 0 && bank[i] == "zzzz", "cycle {c}");
+                    assert_eq!(column[i], "z".repeat(16));
                     continue;
                 }
                 assert_eq!(on, [cmd[i].as_str()], "cycle {c} module {m}");
@@ -670,12 +672,18 @@ fn waveform_commands_and_banks_match_the_command_trace() {
                 } else {
                     u64::from_str_radix(&bank[i], 2).unwrap().to_string()
                 };
-                from_vcd.push((c, m, cmd[i].clone(), bank));
+                let column = if cmd[i] == "READ" {
+                    u64::from_str_radix(&column[i], 2).unwrap().to_string()
+                } else {
+                    assert_eq!(column[i], "z".repeat(16));
+                    String::new()
+                };
+                from_vcd.push((c, m, cmd[i].clone(), bank, column));
             }
         }
         from_vcd.sort();
         // ...equals the command trace's.
-        let mut from_trace: Vec<(u64, usize, String, String)> = read_lines(&csv_path)
+        let mut from_trace: Vec<(u64, usize, String, String, String)> = read_lines(&csv_path)
             .into_iter()
             .filter(|l| l.chars().next().is_some_and(|c| c.is_ascii_digit()))
             .map(|l| {
@@ -685,6 +693,7 @@ fn waveform_commands_and_banks_match_the_command_trace() {
                     f[1].parse().unwrap(),
                     f[2].to_string(),
                     f[3].to_string(),
+                    f[5].to_string(),
                 )
             })
             .collect();

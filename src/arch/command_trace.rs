@@ -81,10 +81,10 @@ impl Sink {
 
 /// Lines are collected in chunks of this size, which a writer thread compresses (`.gz`) and
 /// writes, so that neither compression nor system calls hold up the simulation.
-const CHUNK: usize = 1 << 18;
+const CHUNK: usize = 1 << 16;
 /// Chunks on their way to the writer thread at most (the memory a trace takes is about
 /// `(CHUNKS_IN_FLIGHT + 2) × CHUNK`, whatever its length).
-const CHUNKS_IN_FLIGHT: usize = 4;
+const CHUNKS_IN_FLIGHT: usize = 8;
 /// The longest command line: 20 + 10 + 4 + 4 × 10 digits or letters, 7 separators.
 const LINE_MAX: usize = 96;
 
@@ -99,6 +99,8 @@ pub struct CommandTrace {
     /// `CHUNK + LINE_MAX` bytes, the first `used` of them waiting for the writer.
     buf: Vec<u8>,
     used: usize,
+    /// The header, until the first command or `finish` (notes go in before its column line).
+    header: Option<String>,
     cycle_text: CycleText,
     to_writer: Option<std::sync::mpsc::SyncSender<Message>>,
     /// Written chunks coming back for reuse.
@@ -148,9 +150,10 @@ impl CommandTrace {
                 Ok(())
             })
             .map_err(|e| Error::io(path, e))?;
-        let mut trace = CommandTrace {
+        Ok(CommandTrace {
             buf: vec![0; CHUNK + LINE_MAX],
             used: 0,
+            header: Some(header_text(config, window.clone())),
             cycle_text: CycleText {
                 cycle: 0,
                 text: [0; 20],
@@ -163,10 +166,7 @@ impl CommandTrace {
             window: window.clone().unwrap_or(0..u64::MAX),
             lines: 0,
             end: None,
-        };
-        let header = header_text(config, window);
-        trace.push_bytes(header.as_bytes())?;
-        Ok(trace)
+        })
     }
 
     /// Whether cycle `cycle` is in the trace's window.
@@ -175,13 +175,26 @@ impl CommandTrace {
         self.window.contains(&cycle)
     }
 
-    /// Adds a comment line (`# note: ...`), e.g. the frame the trace belongs to. Checkers
-    /// ignore it.
+    /// Adds comment lines (`# note: ...`), e.g. the frame the trace belongs to: in the header
+    /// if no command was written yet. Checkers ignore them.
     pub fn note(&mut self, text: &str) -> Result<()> {
-        for line in text.lines() {
-            self.push_bytes(format!("# note: {line}\n").as_bytes())?;
+        let notes: String = text.lines().map(|l| format!("# note: {l}\n")).collect();
+        match &mut self.header {
+            Some(header) => {
+                let at = header.len() - COLUMNS.len() - 1;
+                header.insert_str(at, &notes);
+                Ok(())
+            }
+            None => self.push_bytes(notes.as_bytes()),
         }
-        Ok(())
+    }
+
+    #[cold]
+    fn write_header(&mut self) -> Result<()> {
+        match self.header.take() {
+            Some(header) => self.push_bytes(header.as_bytes()),
+            None => Ok(()),
+        }
     }
 
     fn push_bytes(&mut self, bytes: &[u8]) -> Result<()> {
@@ -200,6 +213,9 @@ impl CommandTrace {
     pub fn record(&mut self, c: &IssuedCommand) -> Result<()> {
         if !self.wants(c.cycle) {
             return Ok(());
+        }
+        if self.header.is_some() {
+            self.write_header()?;
         }
         if self.used > CHUNK {
             self.spill()?;
@@ -277,6 +293,7 @@ impl CommandTrace {
             Some(cycle) => format!("# end: cycle {cycle}, {} commands\n", self.lines),
             None => format!("# end: {} commands\n", self.lines),
         };
+        self.write_header()?;
         self.push_bytes(end.as_bytes())?;
         self.spill()?;
         self.send(Message::Finish)?;

@@ -332,6 +332,9 @@ impl SdramModule {
             bank: issued
                 .filter(|c| c.kind != CommandKind::Ref)
                 .map(|c| c.bank as u64),
+            column: issued
+                .filter(|c| c.kind == CommandKind::Read)
+                .map(|c| c.column as u64),
             open_row: self.last_act_row as u64,
             address_fifo: self.fifo.len() as u64,
             voxel_fifo: self.voxel_fifo.len() as u64,

@@ -22,6 +22,8 @@ pub struct ModuleProbe {
     pub command: u64,
     /// Bank of this cycle's command (None: no command, or REF, which has no bank).
     pub bank: Option<u64>,
+    /// Column of this cycle's READ (None: no READ).
+    pub column: Option<u64>,
     /// Row of the most recent ACT.
     pub open_row: u64,
     pub address_fifo: u64,
@@ -112,10 +114,14 @@ struct ModuleIds {
     name: IdCode,
     kinds: [IdCode; 4],
     bank: IdCode,
+    column: IdCode,
     open_row: IdCode,
     address_fifo: IdCode,
     voxel_fifo: IdCode,
 }
+
+/// Width of the `column` signal (columns <= 65536).
+const COLUMN_BITS: u32 = 16;
 
 /// Width of the `cycle` signal.
 const CYCLE_BITS: u32 = 40;
@@ -207,6 +213,7 @@ impl Waveform {
                     w.add_wire(1, "ref").map_err(&e)?,
                 ],
                 bank: w.add_wire(4, "bank").map_err(&e)?,
+                column: w.add_wire(COLUMN_BITS, "column").map_err(&e)?,
                 open_row: w.add_wire(24, "open_row").map_err(&e)?,
                 address_fifo: w.add_wire(12, "address_fifo").map_err(&e)?,
                 voxel_fifo: w.add_wire(12, "voxel_fifo").map_err(&e)?,
@@ -290,6 +297,13 @@ impl Waveform {
                 match now.bank {
                     Some(bank) => write_value(w, ids.bank, bank, 4),
                     None => w.change_vector(ids.bank, [Value::Z; 4]),
+                }
+                .map_err(&e)?;
+            }
+            if first || now.column != before.column {
+                match now.column {
+                    Some(column) => write_value(w, ids.column, column, COLUMN_BITS),
+                    None => w.change_vector(ids.column, [Value::Z; COLUMN_BITS as usize]),
                 }
                 .map_err(&e)?;
             }
