@@ -59,7 +59,7 @@ pub struct IssuedCommand {
 
 enum Sink {
     Plain(PendingFile),
-    Gzip(GzEncoder<PendingFile>),
+    Gzip(Box<GzEncoder<PendingFile>>),
 }
 
 impl Sink {
@@ -124,7 +124,7 @@ impl CommandTrace {
         let file = PendingFile::create(path)?;
         let gzip = path.extension().is_some_and(|e| e == "gz");
         let mut sink = if gzip {
-            Sink::Gzip(GzEncoder::new(file, Compression::fast()))
+            Sink::Gzip(Box::new(GzEncoder::new(file, Compression::fast())))
         } else {
             Sink::Plain(file)
         };
