@@ -46,3 +46,90 @@ pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<()> {
         w.write_all(b"\n")
     })
 }
+
+/// A file written as a stream (waveforms, command traces) under a temporary name in the target's
+/// folder, moved to its name only by `commit`: a run that fails or is killed before then leaves
+/// no file under the target name, and dropping an uncommitted `PendingFile` removes the
+/// temporary. Errors name the target path.
+pub struct PendingFile {
+    path: std::path::PathBuf,
+    tmp: std::path::PathBuf,
+    writer: std::io::BufWriter<std::fs::File>,
+    committed: bool,
+}
+
+impl PendingFile {
+    pub fn create(path: &Path) -> Result<PendingFile> {
+        let dir = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => std::path::PathBuf::from("."),
+        };
+        std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+        let file_name = path
+            .file_name()
+            .ok_or_else(|| Error::Invalid(format!("{}: not a file path", path.display())))?;
+        let tmp = dir.join(format!(
+            ".{}.tmp{}",
+            file_name.to_string_lossy(),
+            std::process::id()
+        ));
+        let file = std::fs::File::create(&tmp).map_err(|e| Error::io(path, e))?;
+        Ok(PendingFile {
+            path: path.to_path_buf(),
+            tmp,
+            writer: std::io::BufWriter::with_capacity(1 << 18, file),
+            committed: false,
+        })
+    }
+
+    /// The name the file gets on `commit`.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Flushes, syncs and renames the file to its name. Writing after this is an error.
+    pub fn commit(&mut self) -> Result<()> {
+        if self.committed {
+            return Err(Error::Invalid(format!(
+                "{}: committed twice",
+                self.path.display()
+            )));
+        }
+        let result = (|| {
+            self.writer.flush()?;
+            self.writer.get_ref().sync_all()?;
+            std::fs::rename(&self.tmp, &self.path)
+        })();
+        result.map_err(|e| Error::io(&self.path, e))?;
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Write for PendingFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        if self.committed {
+            return Err(std::io::Error::other("file already committed"));
+        }
+        self.writer.write(buf)
+    }
+
+    fn write_all(&mut self, buf: &[u8]) -> std::io::Result<()> {
+        if self.committed {
+            return Err(std::io::Error::other("file already committed"));
+        }
+        self.writer.write_all(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.writer.flush()
+    }
+}
+
+impl Drop for PendingFile {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}

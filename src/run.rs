@@ -13,7 +13,8 @@ use std::time::Instant;
 use serde::Serialize;
 use serde_json::Value;
 
-use crate::arch::pipeline::{simulate, CycleStats, StallCycles};
+use crate::arch::command_trace::CommandTrace;
+use crate::arch::pipeline::{simulate_with, CycleStats, SimOptions, StallCycles};
 use crate::arch::sdram_module::SdramMemory;
 use crate::arch::trace::Waveform;
 use crate::arch::voxel_memory::{IdealMemory, VoxelMemory};
@@ -220,6 +221,8 @@ pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<
 pub struct Probes<'a> {
     /// VCD waveform of a cycle window.
     pub waveform: Option<&'a mut Waveform>,
+    /// Every SDRAM command of a cycle window, as a checkable trace (docs/waveforms.md).
+    pub command_trace: Option<&'a mut CommandTrace>,
 }
 
 /// The figures of one run. Fields a model does not produce are absent (not zero).
@@ -325,13 +328,13 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
                         prepared.volume.dims,
                         config.clock.frequency_mhz,
                     );
-                    let result = simulate_with(r, &camera, &mut memory, config, probes)?;
+                    let result = simulate_on(r, &camera, &mut memory, config, probes)?;
                     memory_stats = Some(memory.stats_json());
                     result
                 }
                 Memory::Ideal { latency } => {
                     let mut memory = IdealMemory::new(latency);
-                    let result = simulate_with(r, &camera, &mut memory, config, probes)?;
+                    let result = simulate_on(r, &camera, &mut memory, config, probes)?;
                     memory_stats = Some(memory.stats_json());
                     result
                 }
@@ -397,20 +400,23 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
     })
 }
 
-fn simulate_with<M: VoxelMemory>(
+fn simulate_on<M: VoxelMemory>(
     renderer: &FixedRenderer,
     camera: &Camera,
     memory: &mut M,
     config: &HardwareConfig,
     probes: Probes,
 ) -> Result<crate::arch::pipeline::CycleResult> {
-    simulate(
+    simulate_with(
         renderer,
         camera,
         &renderer.skipper(),
         memory,
         config,
-        true,
-        probes.waveform,
+        SimOptions {
+            skip_dead_cycles: true,
+            waveform: probes.waveform,
+            command_trace: probes.command_trace,
+        },
     )
 }

@@ -167,3 +167,55 @@ fn the_default_is_the_calibrated_preset_and_overrides_are_printed() {
     assert!(stdout.contains("round-robin ray selection"), "{stdout}");
     assert!(stdout.contains("leaping 4³ class map"), "{stdout}");
 }
+
+#[test]
+fn sim_writes_a_command_trace_that_passes_the_checker_and_a_vcd_at_its_clock() {
+    let dir = scratch("trace");
+    let (trace, vcd, json_path) = (dir.join("t.csv.gz"), dir.join("w.vcd"), dir.join("s.json"));
+    vizsim(&[
+        "sim",
+        "--dataset",
+        "phantom:metaballs:32",
+        "--size",
+        "16x16",
+        "--set",
+        "clock.frequency_mhz=133.0",
+        "--command-trace",
+        trace.to_str().unwrap(),
+        "--vcd",
+        vcd.to_str().unwrap(),
+        "--vcd-cycles",
+        "0..500",
+        "--json",
+        json_path.to_str().unwrap(),
+    ]);
+    let report = vizsim::arch::command_trace::check(&trace).expect("a legal trace");
+    let sim = json(&json_path);
+    // Every READ of the frame is in the trace (index 1: READ).
+    assert_eq!(
+        report.commands[1],
+        sim["row_hits"].as_u64().unwrap() + sim["row_misses"].as_u64().unwrap()
+    );
+    let text = std::fs::read_to_string(&vcd).unwrap();
+    assert!(text.contains("$timescale"), "a VCD");
+    assert!(text.contains("clk"), "a clock signal");
+    assert!(
+        !text.contains("10 ns"),
+        "the timescale follows 133 MHz, not the fixed 10 ns"
+    );
+    // No trace with the ideal memory: it issues no commands.
+    let out = Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args([
+            "sim",
+            "--dataset",
+            "phantom:sphere:16",
+            "--memory",
+            "ideal",
+            "--command-trace",
+            dir.join("x.csv").to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(!dir.join("x.csv").exists());
+}

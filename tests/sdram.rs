@@ -499,15 +499,19 @@ fn waveform_records_its_window_and_changes_no_result() {
     ] {
         assert!(text.contains(signal), "missing {signal}");
     }
+    // 100 MHz: 1 ns timescale, a rising and a falling clock edge per cycle (10 ns apart), and
+    // the rising edge that ends the window.
+    assert!(text.contains("$timescale 1 ns $end"));
     let stamps: Vec<u64> = text
         .lines()
         .filter_map(|l| l.strip_prefix('#'))
         .map(|t| t.parse().unwrap())
         .collect();
-    assert_eq!(stamps.first(), Some(&100));
-    assert_eq!(stamps.last(), Some(&399));
-    assert_eq!(stamps.len(), 300, "every cycle of the window");
-    assert!(!dir.join("frame.vcd.tmp").exists());
+    assert_eq!(stamps.first(), Some(&1000));
+    assert_eq!(stamps.last(), Some(&4000));
+    assert_eq!(stamps.len(), 2 * 300 + 1, "every cycle of the window");
+    let files: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
+    assert_eq!(files.len(), 1, "no temporary file left");
 }
 
 /// Lagging-first selection keeps the rays in flight side by side, so on an oblique view their

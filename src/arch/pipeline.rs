@@ -21,6 +21,7 @@
 
 use std::collections::VecDeque;
 
+use super::command_trace::{CommandTrace, IssuedCommand};
 use super::compositing_buffer::CompositingBuffer;
 use super::ray_queue::{RayQueue, RaySlot};
 use super::skip_unit::{PositionUpdate, SkipUnit};
@@ -105,10 +106,33 @@ struct StagedSample {
     pos: [i64; 3],
 }
 
+/// How a simulation runs and what it records besides its result.
+pub struct SimOptions<'a> {
+    /// Jump over cycles in which nothing can happen (same results as ticking every cycle, only
+    /// faster). Default true.
+    pub skip_dead_cycles: bool,
+    /// Record the signals of the waveform's cycle window into its VCD file.
+    pub waveform: Option<&'a mut Waveform>,
+    /// Write every memory command of the trace's cycle window (nothing with a memory model
+    /// without commands). The simulation also tells the trace the cycle it ended at.
+    pub command_trace: Option<&'a mut CommandTrace>,
+}
+
+impl Default for SimOptions<'_> {
+    fn default() -> Self {
+        SimOptions {
+            skip_dead_cycles: true,
+            waveform: None,
+            command_trace: None,
+        }
+    }
+}
+
 /// Simulates one frame. `skipper` is the space-skipping strategy (shared with the functional
 /// model), `memory` the voxel memory model. `skip_dead_cycles`: jump over cycles in which
 /// nothing can happen (same results as ticking every cycle, only faster). `waveform`: record
-/// the signals of its cycle window into a VCD file.
+/// the signals of its cycle window into a VCD file. (`simulate_with` takes the options as one
+/// struct and can also write a command trace.)
 pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
     renderer: &FixedRenderer,
     camera: &Camera,
@@ -116,8 +140,37 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
     memory: &mut M,
     config: &HardwareConfig,
     skip_dead_cycles: bool,
-    mut waveform: Option<&mut Waveform>,
+    waveform: Option<&mut Waveform>,
 ) -> Result<CycleResult> {
+    simulate_with(
+        renderer,
+        camera,
+        skipper,
+        memory,
+        config,
+        SimOptions {
+            skip_dead_cycles,
+            waveform,
+            command_trace: None,
+        },
+    )
+}
+
+/// Simulates one frame with the given options (see `SimOptions`).
+pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
+    renderer: &FixedRenderer,
+    camera: &Camera,
+    skipper: &S,
+    memory: &mut M,
+    config: &HardwareConfig,
+    options: SimOptions<'_>,
+) -> Result<CycleResult> {
+    let SimOptions {
+        skip_dead_cycles,
+        mut waveform,
+        mut command_trace,
+    } = options;
+    let mut issued_commands: Vec<IssuedCommand> = Vec::new();
     let (w, h) = (camera.width, camera.height);
     let ray_count = (w * h) as usize;
     let order = tile_order(w, h, config.ray_queue.tile);
@@ -215,6 +268,13 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
         // Voxel memory: samples whose words are all in.
         completed_tags.clear();
         memory.step(now, &mut completed_tags);
+        if let Some(trace) = command_trace.as_deref_mut().filter(|t| t.wants(now)) {
+            issued_commands.clear();
+            memory.issued_commands(now, &mut issued_commands);
+            for c in &issued_commands {
+                trace.record(c)?;
+            }
+        }
         for &tag in &completed_tags {
             buffer.arrive(tag as u32);
             moved = true;
@@ -384,6 +444,9 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
         now += span;
     }
     stats.cycles = now;
+    if let Some(trace) = command_trace {
+        trace.end(now);
+    }
     stats.rays_terminated_early = records.iter().filter(|r| r.terminated_early).count() as u64;
 
     // Conservation (brief, section 5 (e)): every issued sample composited once or discarded.

@@ -33,6 +33,21 @@ pub struct SdramTiming {
 }
 
 impl SdramTiming {
+    /// Every timing parameter in cycles, by its configuration name (`sdram.<name>`).
+    pub fn parameters(&self) -> [(&'static str, u32); 9] {
+        [
+            ("cl", self.cl),
+            ("t_rcd", self.t_rcd),
+            ("t_rp", self.t_rp),
+            ("t_ras", self.t_ras),
+            ("t_rc", self.t_rc),
+            ("t_rrd", self.t_rrd),
+            ("t_ccd", self.t_ccd),
+            ("t_rfc", self.t_rfc),
+            ("refresh_interval", self.refresh_interval),
+        ]
+    }
+
     pub fn validate(&self, source: &str) -> Result<()> {
         for (field, value) in [
             ("sdram.cl", self.cl),
@@ -78,8 +93,30 @@ pub enum CommandKind {
 const KINDS: usize = 4;
 
 impl CommandKind {
-    fn index(self) -> usize {
+    pub const ALL: [CommandKind; KINDS] = [
+        CommandKind::Act,
+        CommandKind::Read,
+        CommandKind::Pre,
+        CommandKind::Ref,
+    ];
+
+    /// 0 ACT, 1 READ, 2 PRE, 3 REF.
+    pub fn index(self) -> usize {
         self as usize
+    }
+
+    /// The command's name in traces and waveforms: ACT, READ, PRE, REF.
+    pub fn name(self) -> &'static str {
+        match self {
+            CommandKind::Act => "ACT",
+            CommandKind::Read => "READ",
+            CommandKind::Pre => "PRE",
+            CommandKind::Ref => "REF",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<CommandKind> {
+        CommandKind::ALL.into_iter().find(|k| k.name() == name)
     }
 }
 
@@ -128,36 +165,57 @@ pub enum Scope {
     AllBanks,
 }
 
+impl Scope {
+    /// The scope's name in traces: same_bank, other_banks, all_banks.
+    pub fn name(self) -> &'static str {
+        match self {
+            Scope::SameBank => "same_bank",
+            Scope::OtherBanks => "other_banks",
+            Scope::AllBanks => "all_banks",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Scope> {
+        [Scope::SameBank, Scope::OtherBanks, Scope::AllBanks]
+            .into_iter()
+            .find(|s| s.name() == name)
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub struct TimingRule {
     pub preceding: CommandKind,
     pub following: CommandKind,
     pub scope: Scope,
     pub latency: u32,
+    /// The timing parameter the latency comes from (`t_rcd`, ...; `read_to_pre` for the fixed
+    /// one-cycle READ-to-PRE rule).
+    pub parameter: &'static str,
 }
 
 /// Every timing constraint of the device, in one table.
 pub fn timing_rules(t: &SdramTiming) -> Vec<TimingRule> {
     use CommandKind::*;
     use Scope::*;
-    let rule = |preceding, following, scope, latency| TimingRule {
+    let rule = |preceding, following, scope, (parameter, latency)| TimingRule {
         preceding,
         following,
         scope,
         latency,
+        parameter,
     };
     vec![
-        rule(Act, Read, SameBank, t.t_rcd),
-        rule(Act, Pre, SameBank, t.t_ras),
-        rule(Act, Act, SameBank, t.t_rc),
-        rule(Act, Act, OtherBanks, t.t_rrd),
-        rule(Pre, Act, SameBank, t.t_rp),
-        rule(Pre, Ref, AllBanks, t.t_rp),
-        rule(Read, Read, AllBanks, t.t_ccd),
+        rule(Act, Read, SameBank, ("t_rcd", t.t_rcd)),
+        rule(Act, Pre, SameBank, ("t_ras", t.t_ras)),
+        rule(Act, Act, SameBank, ("t_rc", t.t_rc)),
+        rule(Act, Act, OtherBanks, ("t_rrd", t.t_rrd)),
+        rule(Pre, Act, SameBank, ("t_rp", t.t_rp)),
+        rule(Pre, Ref, AllBanks, ("t_rp", t.t_rp)),
+        rule(Read, Read, AllBanks, ("t_ccd", t.t_ccd)),
         // A read must leave its bank open until the access is under way (burst length 1).
-        rule(Read, Pre, SameBank, 1),
-        rule(Ref, Act, AllBanks, t.t_rfc),
-        rule(Ref, Ref, AllBanks, t.t_rfc),
+        rule(Read, Pre, SameBank, ("read_to_pre", 1)),
+        rule(Ref, Act, AllBanks, ("t_rfc", t.t_rfc)),
+        rule(Ref, Ref, AllBanks, ("t_rfc", t.t_rfc)),
     ]
 }
 

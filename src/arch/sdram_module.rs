@@ -15,8 +15,9 @@
 use std::collections::VecDeque;
 
 use super::address_map::{AddressMap, MemoryConfig, RowPolicy, WordAddress};
+use super::command_trace::IssuedCommand;
 use super::overtaking_fifo::{OvertakingFifo, PendingWord};
-use super::sdram::{Command, SdramDevice, SdramTiming};
+use super::sdram::{Command, CommandKind, SdramDevice, SdramTiming};
 use super::trace::ModuleProbe;
 use super::voxel_memory::{SampleRequest, VoxelMemory};
 
@@ -63,8 +64,9 @@ pub struct SdramModule {
     refresh_interval: Option<u64>,
     next_refresh: u64,
     refresh_pending: bool,
-    /// For waveforms: the cycle and kind of the last command, the row of the last ACT.
-    last_command: (u64, u64),
+    /// For waveforms and command traces: the last command issued (cycle `u64::MAX`: none yet),
+    /// the row of the last ACT.
+    last_command: IssuedCommand,
     last_act_row: u32,
     /// The controller sleeps until this cycle (0 after a push: run next cycle).
     wake_at: u64,
@@ -96,7 +98,15 @@ impl SdramModule {
             refresh_interval,
             next_refresh: refresh_interval.unwrap_or(u64::MAX),
             refresh_pending: false,
-            last_command: (u64::MAX, 0),
+            last_command: IssuedCommand {
+                cycle: u64::MAX,
+                module: 0,
+                kind: CommandKind::Ref,
+                bank: 0,
+                row: 0,
+                column: 0,
+                tag: 0,
+            },
             last_act_row: 0,
             wake_at: 0,
             last_step: 0,
@@ -126,33 +136,46 @@ impl SdramModule {
         });
     }
 
-    fn try_issue(&mut self, cmd: Command, now: u64) -> bool {
-        if self.device.is_legal(cmd, now) {
-            self.device.issue(cmd, now);
-            let code = match cmd {
-                Command::Act { row, .. } => {
-                    self.stats.activates += 1;
-                    self.last_act_row = row;
-                    1
-                }
-                Command::Read { .. } => {
-                    self.stats.reads += 1;
-                    2
-                }
-                Command::Pre { .. } => {
-                    self.stats.precharges += 1;
-                    3
-                }
-                Command::Ref => {
-                    self.stats.refreshes += 1;
-                    4
-                }
-            };
-            self.last_command = (now, code);
-            true
-        } else {
-            false
+    /// Issues `cmd` at `now` if the device allows it. `tag`: the request a READ serves.
+    fn try_issue(&mut self, cmd: Command, now: u64, tag: u32) -> bool {
+        if !self.device.is_legal(cmd, now) {
+            return false;
         }
+        // The row a READ reads or a PRE closes: the bank's open row before the command.
+        let (bank, row, column) = match cmd {
+            Command::Act { bank, row } => (bank, row, 0),
+            Command::Read { bank, column } => {
+                (bank, self.device.open_row(bank).unwrap_or(0), column)
+            }
+            Command::Pre { bank } => (bank, self.device.open_row(bank).unwrap_or(0), 0),
+            Command::Ref => (0, 0, 0),
+        };
+        self.device.issue(cmd, now);
+        match cmd {
+            Command::Act { row, .. } => {
+                self.stats.activates += 1;
+                self.last_act_row = row;
+            }
+            Command::Read { .. } => self.stats.reads += 1,
+            Command::Pre { .. } => self.stats.precharges += 1,
+            Command::Ref => self.stats.refreshes += 1,
+        }
+        self.last_command = IssuedCommand {
+            cycle: now,
+            module: 0,
+            kind: cmd.kind(),
+            bank: bank as u32,
+            row,
+            column,
+            tag,
+        };
+        true
+    }
+
+    /// The command issued in cycle `now`, if any (`module` is left 0: the module does not know
+    /// its index).
+    pub fn issued_at(&self, now: u64) -> Option<IssuedCommand> {
+        (self.last_command.cycle == now).then_some(self.last_command)
     }
 
     /// One controller cycle. A controller that can do nothing before a known cycle (its
@@ -194,7 +217,7 @@ impl SdramModule {
                 Some(bank) => Command::Pre { bank },
                 None => Command::Ref,
             };
-            if self.try_issue(command, now) {
+            if self.try_issue(command, now, 0) {
                 if command == Command::Ref {
                     self.refresh_pending = false;
                 }
@@ -209,7 +232,7 @@ impl SdramModule {
                 }
                 match self.device.open_row(bank) {
                     Some(row) if !self.fifo.window_hits(bank as u32, row) => {
-                        if self.try_issue(Command::Pre { bank }, now) {
+                        if self.try_issue(Command::Pre { bank }, now, 0) {
                             self.to_close[bank] = false;
                             return now + 1;
                         }
@@ -242,7 +265,7 @@ impl SdramModule {
                 row: request.addr.row,
             },
         };
-        if !self.try_issue(command, now) {
+        if !self.try_issue(command, now, request.tag) {
             let ready = self.device.earliest(command);
             return if pending_close { now + 1 } else { ready };
         }
@@ -303,12 +326,15 @@ impl SdramModule {
 
     /// Waveform signals at cycle `now`.
     pub fn probe(&self, now: u64) -> ModuleProbe {
+        let issued = self.issued_at(now);
         ModuleProbe {
-            command: if self.last_command.0 == now {
-                self.last_command.1
-            } else {
-                0
-            },
+            command: issued.map_or(0, |c| c.kind.index() as u64 + 1),
+            bank: issued
+                .filter(|c| c.kind != CommandKind::Ref)
+                .map(|c| c.bank as u64),
+            column: issued
+                .filter(|c| c.kind == CommandKind::Read)
+                .map(|c| c.column as u64),
             open_row: self.last_act_row as u64,
             address_fifo: self.fifo.len() as u64,
             voxel_fifo: self.voxel_fifo.len() as u64,
@@ -417,6 +443,15 @@ impl VoxelMemory for SdramMemory {
     fn probe(&self, modules: &mut Vec<ModuleProbe>) {
         modules.clear();
         modules.extend(self.modules.iter().map(|m| m.probe(self.now)));
+    }
+
+    fn issued_commands(&self, now: u64, out: &mut Vec<IssuedCommand>) {
+        for (index, module) in self.modules.iter().enumerate() {
+            if let Some(mut command) = module.issued_at(now) {
+                command.module = index as u32;
+                out.push(command);
+            }
+        }
     }
 
     fn stats_json(&self) -> serde_json::Value {

@@ -1,25 +1,37 @@
 //! Waveforms: a VCD file (GTKWave, Surfer) of the pipeline's signals over a window of cycles.
 //! The pipeline builds a `Probe` only when a waveform is being recorded, so a run without
-//! `--vcd` pays one `Option` check per cycle.
+//! `--vcd` pays one `Option` check per cycle. Signals and how to view them: docs/waveforms.md.
+//!
+//! Time: `clk` rises at the start of each cycle and falls half a period later; the timescale
+//! follows the clock (`VcdTime`), so the viewer's time axis is real time and cycle c starts at
+//! c × period. Every other signal changes only on rising edges.
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use vcd::{IdCode, TimescaleUnit, Value};
+use vcd::{IdCode, TimescaleUnit, Value, VarType};
 
+use crate::config::HardwareConfig;
 use crate::error::{Error, Result};
+use crate::output::PendingFile;
 
 /// Per-module signals. `command`: 0 none, 1 ACT, 2 READ, 3 PRE, 4 REF (issued this cycle).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ModuleProbe {
     pub command: u64,
+    /// Bank of this cycle's command (None: no command, or REF, which has no bank).
+    pub bank: Option<u64>,
+    /// Column of this cycle's READ (None: no READ).
+    pub column: Option<u64>,
     /// Row of the most recent ACT.
     pub open_row: u64,
     pub address_fifo: u64,
     pub voxel_fifo: u64,
 }
+
+/// Names of the `command` codes: the string signal `cmd` shows these.
+pub const COMMAND_NAMES: [&str; 5] = ["NOP", "ACT", "READ", "PRE", "REF"];
 
 /// The signals of one cycle.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -41,37 +53,143 @@ pub struct Probe {
 /// Reads one pipeline signal from a probe.
 type Signal = dyn Fn(&Probe) -> u64;
 
+/// The VCD time of clock edges. The timescale is the coarsest of 1 ns, 100 ps, 10 ps and 1 ps in
+/// which half a clock period is a whole number (100 MHz: 1 ns, a cycle is 10 units); when none
+/// is (133 MHz: 3759.398... ps), 1 ps, and each edge's time is rounded to the nearest ps from
+/// its cycle number (the error stays below 0.5 ps and never accumulates).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VcdTime {
+    /// The timescale: `magnitude` × `unit`.
+    pub magnitude: u32,
+    pub unit: TimescaleUnit,
+    /// Half a clock period in timescale units (may be fractional: then edges are rounded).
+    pub half_period: f64,
+}
+
+impl VcdTime {
+    pub fn for_frequency(frequency_mhz: f64) -> VcdTime {
+        let half_ps = 5e5 / frequency_mhz;
+        for (magnitude, unit, ps) in [
+            (1, TimescaleUnit::NS, 1000.0),
+            (100, TimescaleUnit::PS, 100.0),
+            (10, TimescaleUnit::PS, 10.0),
+        ] {
+            let units = half_ps / ps;
+            if units >= 1.0 && (units - units.round()).abs() < 1e-9 * units.max(1.0) {
+                return VcdTime {
+                    magnitude,
+                    unit,
+                    half_period: units.round(),
+                };
+            }
+        }
+        VcdTime {
+            magnitude: 1,
+            unit: TimescaleUnit::PS,
+            half_period: half_ps,
+        }
+    }
+
+    /// The time of cycle `cycle`'s rising edge (`falling`: its falling edge), in timescale units.
+    pub fn edge(&self, cycle: u64, falling: bool) -> u64 {
+        ((2 * cycle + falling as u64) as f64 * self.half_period).round() as u64
+    }
+
+    /// The timescale in picoseconds.
+    pub fn unit_ps(&self) -> f64 {
+        let unit = match self.unit {
+            TimescaleUnit::S => 1e12,
+            TimescaleUnit::MS => 1e9,
+            TimescaleUnit::US => 1e6,
+            TimescaleUnit::NS => 1e3,
+            TimescaleUnit::PS => 1.0,
+            TimescaleUnit::FS => 1e-3,
+        };
+        self.magnitude as f64 * unit
+    }
+}
+
 struct ModuleIds {
     command: IdCode,
+    name: IdCode,
+    kinds: [IdCode; 4],
+    bank: IdCode,
+    column: IdCode,
     open_row: IdCode,
     address_fifo: IdCode,
     voxel_fifo: IdCode,
 }
 
+/// Width of the `column` signal (columns <= 65536).
+const COLUMN_BITS: u32 = 16;
+
+/// Width of the `cycle` signal.
+const CYCLE_BITS: u32 = 40;
+
 pub struct Waveform {
-    writer: vcd::Writer<BufWriter<File>>,
+    writer: vcd::Writer<PendingFile>,
     path: PathBuf,
-    tmp: PathBuf,
     window: Range<u64>,
+    time: VcdTime,
+    clk: IdCode,
+    cycle: IdCode,
     ids: [IdCode; 8],
     modules: Vec<ModuleIds>,
     last: Option<Probe>,
-}
-
-fn io(path: &Path) -> impl Fn(std::io::Error) -> Error + '_ {
-    move |e| Error::io(path, e)
+    last_cycle: Option<u64>,
 }
 
 impl Waveform {
-    /// Starts a VCD file for `modules` memory modules, recording cycles in `window`. The file is
-    /// written under a temporary name and renamed by `finish`.
+    /// Starts a VCD file for `config`'s memory modules at its clock frequency, recording cycles
+    /// in `window`. The file is written under a temporary name and renamed by `finish`; a
+    /// waveform dropped without `finish` leaves no file.
+    pub fn for_config(
+        path: &Path,
+        config: &HardwareConfig,
+        window: Range<u64>,
+    ) -> Result<Waveform> {
+        Waveform::create_at(
+            path,
+            config.memory.modules(),
+            window,
+            config.clock.frequency_mhz,
+        )
+    }
+
+    /// `create_at` at 100 MHz (the default clock). Prefer `for_config`.
     pub fn create(path: &Path, modules: usize, window: Range<u64>) -> Result<Waveform> {
-        let tmp = path.with_extension("vcd.tmp");
-        let file = File::create(&tmp).map_err(io(&tmp))?;
-        let mut w = vcd::Writer::new(BufWriter::new(file));
-        let e = io(&tmp);
-        w.timescale(10, TimescaleUnit::NS).map_err(&e)?;
+        Waveform::create_at(path, modules, window, 100.0)
+    }
+
+    /// Starts a VCD file for `modules` memory modules clocked at `frequency_mhz`, recording
+    /// cycles in `window`.
+    pub fn create_at(
+        path: &Path,
+        modules: usize,
+        window: Range<u64>,
+        frequency_mhz: f64,
+    ) -> Result<Waveform> {
+        if !(frequency_mhz > 0.0 && frequency_mhz <= 1e5) {
+            return Err(Error::Invalid(format!(
+                "{}: clock frequency {frequency_mhz} MHz is out of range (0, 1e5]",
+                path.display()
+            )));
+        }
+        let file = PendingFile::create(path)?;
+        let time = VcdTime::for_frequency(frequency_mhz);
+        let mut w = vcd::Writer::new(file);
+        let e = io(path);
+        let period_ns = 1e3 / frequency_mhz;
+        w.comment(&format!(
+            "vizsim pipeline waveform: clock {frequency_mhz} MHz (period {period_ns} ns), cycles {}..{}; \
+             signals: docs/waveforms.md",
+            window.start, window.end
+        ))
+        .map_err(&e)?;
+        w.timescale(time.magnitude, time.unit).map_err(&e)?;
         w.add_module("pipeline").map_err(&e)?;
+        let clk = w.add_wire(1, "clk").map_err(&e)?;
+        let cycle = w.add_wire(CYCLE_BITS, "cycle").map_err(&e)?;
         let ids = [
             w.add_wire(16, "ray_queue_occupancy").map_err(&e)?,
             w.add_wire(1, "issue_valid").map_err(&e)?,
@@ -87,6 +205,15 @@ impl Waveform {
             w.add_module(&format!("module{m}")).map_err(&e)?;
             module_ids.push(ModuleIds {
                 command: w.add_wire(3, "command").map_err(&e)?,
+                name: w.add_var(VarType::String, 1, "cmd", None).map_err(&e)?,
+                kinds: [
+                    w.add_wire(1, "act").map_err(&e)?,
+                    w.add_wire(1, "read").map_err(&e)?,
+                    w.add_wire(1, "pre").map_err(&e)?,
+                    w.add_wire(1, "ref").map_err(&e)?,
+                ],
+                bank: w.add_wire(4, "bank").map_err(&e)?,
+                column: w.add_wire(COLUMN_BITS, "column").map_err(&e)?,
                 open_row: w.add_wire(24, "open_row").map_err(&e)?,
                 address_fifo: w.add_wire(12, "address_fifo").map_err(&e)?,
                 voxel_fifo: w.add_wire(12, "voxel_fifo").map_err(&e)?,
@@ -99,11 +226,14 @@ impl Waveform {
         Ok(Waveform {
             writer: w,
             path: path.to_path_buf(),
-            tmp: tmp.clone(),
             window,
+            time,
+            clk,
+            cycle,
             ids,
             modules: module_ids,
             last: None,
+            last_cycle: None,
         })
     }
 
@@ -111,15 +241,24 @@ impl Waveform {
         self.window.contains(&cycle)
     }
 
-    /// Records the cycle's signals (only those that changed).
+    /// The waveform's time base.
+    pub fn time(&self) -> VcdTime {
+        self.time
+    }
+
+    /// Records the cycle's signals (only those that changed) at its rising clock edge, and the
+    /// falling edge half a period later.
     pub fn sample(&mut self, cycle: u64, p: &Probe) -> Result<()> {
         if !self.wants(cycle) {
             return Ok(());
         }
-        let e = io(&self.tmp);
+        let e = io(&self.path);
         let prev = self.last.take();
         let changed = |f: &Signal| prev.as_ref().is_none_or(|q| f(q) != f(p));
-        self.writer.timestamp(cycle).map_err(&e)?;
+        let w = &mut self.writer;
+        w.timestamp(self.time.edge(cycle, false)).map_err(&e)?;
+        w.change_scalar(self.clk, Value::V1).map_err(&e)?;
+        write_value(w, self.cycle, cycle, CYCLE_BITS).map_err(&e)?;
         let scalars: [(usize, &Signal, u32); 8] = [
             (0, &|p| p.ray_queue_occupancy, 16),
             (1, &|p| p.issue_valid as u64, 1),
@@ -132,42 +271,74 @@ impl Waveform {
         ];
         for (i, f, width) in scalars {
             if changed(f) {
-                write_value(&mut self.writer, self.ids[i], f(p), width).map_err(&e)?;
+                write_value(w, self.ids[i], f(p), width).map_err(&e)?;
             }
         }
         for (m, ids) in self.modules.iter().enumerate() {
             let now = p.modules.get(m).copied().unwrap_or_default();
             let before = prev.as_ref().and_then(|q| q.modules.get(m).copied());
+            let first = before.is_none();
+            let before = before.unwrap_or_default();
+            if first || now.command != before.command {
+                write_value(w, ids.command, now.command, 3).map_err(&e)?;
+                let name = COMMAND_NAMES
+                    .get(now.command as usize)
+                    .copied()
+                    .unwrap_or("?");
+                w.change_string(ids.name, name).map_err(&e)?;
+                for (k, &id) in ids.kinds.iter().enumerate() {
+                    let on = now.command == k as u64 + 1;
+                    if first || on != (before.command == k as u64 + 1) {
+                        write_value(w, id, on as u64, 1).map_err(&e)?;
+                    }
+                }
+            }
+            if first || now.bank != before.bank {
+                match now.bank {
+                    Some(bank) => write_value(w, ids.bank, bank, 4),
+                    None => w.change_vector(ids.bank, [Value::Z; 4]),
+                }
+                .map_err(&e)?;
+            }
+            if first || now.column != before.column {
+                match now.column {
+                    Some(column) => write_value(w, ids.column, column, COLUMN_BITS),
+                    None => w.change_vector(ids.column, [Value::Z; COLUMN_BITS as usize]),
+                }
+                .map_err(&e)?;
+            }
             for (id, value, old, width) in [
-                (ids.command, now.command, before.map(|b| b.command), 3),
-                (ids.open_row, now.open_row, before.map(|b| b.open_row), 24),
-                (
-                    ids.address_fifo,
-                    now.address_fifo,
-                    before.map(|b| b.address_fifo),
-                    12,
-                ),
-                (
-                    ids.voxel_fifo,
-                    now.voxel_fifo,
-                    before.map(|b| b.voxel_fifo),
-                    12,
-                ),
+                (ids.open_row, now.open_row, before.open_row, 24),
+                (ids.address_fifo, now.address_fifo, before.address_fifo, 12),
+                (ids.voxel_fifo, now.voxel_fifo, before.voxel_fifo, 12),
             ] {
-                if old != Some(value) {
-                    write_value(&mut self.writer, id, value, width).map_err(&e)?;
+                if first || old != value {
+                    write_value(w, id, value, width).map_err(&e)?;
                 }
             }
         }
+        w.timestamp(self.time.edge(cycle, true)).map_err(&e)?;
+        w.change_scalar(self.clk, Value::V0).map_err(&e)?;
         self.last = Some(p.clone());
+        self.last_cycle = Some(cycle);
         Ok(())
     }
 
-    /// Flushes and moves the file to its name.
+    /// Ends the last cycle recorded (the next rising edge), flushes and moves the file to its
+    /// name.
     pub fn finish(mut self) -> Result<()> {
-        self.writer.writer().flush().map_err(io(&self.tmp))?;
-        std::fs::rename(&self.tmp, &self.path).map_err(io(&self.path))
+        let e = io(&self.path);
+        if let Some(cycle) = self.last_cycle {
+            let w = &mut self.writer;
+            w.timestamp(self.time.edge(cycle + 1, false)).map_err(&e)?;
+            w.change_scalar(self.clk, Value::V1).map_err(&e)?;
+        }
+        self.writer.writer().commit()
     }
+}
+
+fn io(path: &Path) -> impl Fn(std::io::Error) -> Error + '_ {
+    move |e| Error::io(path, e)
 }
 
 fn write_value<W: Write>(
@@ -192,11 +363,16 @@ fn write_value<W: Write>(
     }
 }
 
-/// Parses `A..B` (cycles A up to B, B excluded).
+/// Parses `A..B` (cycles A up to B, B excluded) given to `--vcd-cycles`.
 pub fn parse_window(text: &str) -> Result<Range<u64>> {
+    parse_cycle_window("--vcd-cycles", text)
+}
+
+/// Parses `A..B` (cycles A up to B, B excluded); `flag` names the option in errors.
+pub fn parse_cycle_window(flag: &str, text: &str) -> Result<Range<u64>> {
     let bad = || {
         Error::Invalid(format!(
-            "--vcd-cycles `{text}`: expected A..B with A < B, e.g. 0..5000"
+            "{flag} `{text}`: expected A..B with A < B, e.g. 0..5000"
         ))
     };
     let (a, b) = text.split_once("..").ok_or_else(bad)?;

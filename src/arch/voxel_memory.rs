@@ -3,6 +3,7 @@
 //! overtaking) is one implementation; `IdealMemory` (a fixed latency, unlimited bandwidth) is
 //! the other, used for closed-form checks and as the "memory is free" bound.
 
+use super::command_trace::IssuedCommand;
 use super::trace::ModuleProbe;
 
 /// A sample's memory request: its tag and the lower corner of its 2×2×2 neighbourhood.
@@ -32,6 +33,9 @@ pub trait VoxelMemory {
     fn probe(&self, modules: &mut Vec<ModuleProbe>) {
         modules.clear();
     }
+    /// Appends the memory commands issued in cycle `now` (the last cycle stepped), in module
+    /// order; none for models without commands. Called only while a command trace records.
+    fn issued_commands(&self, _now: u64, _out: &mut Vec<IssuedCommand>) {}
 }
 
 /// Every request completes exactly `latency` cycles after it entered.
@@ -102,5 +106,8 @@ impl<M: VoxelMemory + ?Sized> VoxelMemory for Box<M> {
     }
     fn probe(&self, modules: &mut Vec<ModuleProbe>) {
         (**self).probe(modules)
+    }
+    fn issued_commands(&self, now: u64, out: &mut Vec<IssuedCommand>) {
+        (**self).issued_commands(now, out)
     }
 }

@@ -22,6 +22,13 @@ pub struct SimArgs {
     /// Cycle window of the waveform, A..B.
     #[arg(long, default_value = "0..10000")]
     vcd_cycles: String,
+    /// Write every SDRAM command to this CSV file (gzip when it ends in .gz): cycle, module,
+    /// command, bank, row, column, tag; the timing parameters in its header (docs/waveforms.md).
+    #[arg(long)]
+    command_trace: Option<PathBuf>,
+    /// Cycle window of the command trace, A..B (default: the whole frame).
+    #[arg(long, requires = "command_trace")]
+    trace_cycles: Option<String>,
     /// Latency of the ideal memory, in cycles (1..=1048576).
     #[arg(long, default_value_t = 6)]
     ideal_latency: u64,
@@ -52,18 +59,49 @@ pub fn run(args: SimArgs) -> Result<()> {
     desc.validate()?;
     let config = &desc.hardware;
     println!("{}", args.hardware.resolved_line(config));
+    use vizsim::arch::command_trace::CommandTrace;
+    use vizsim::arch::trace::{parse_cycle_window, parse_window, Waveform};
+    anyhow::ensure!(
+        args.command_trace.is_none() || desc.memory == Memory::Sdram,
+        "--command-trace needs --memory sdram (the ideal memory issues no commands)"
+    );
+    let mut command_trace = match &args.command_trace {
+        Some(path) => {
+            let window = args
+                .trace_cycles
+                .as_deref()
+                .map(|t| parse_cycle_window("--trace-cycles", t))
+                .transpose()?;
+            let mut trace = CommandTrace::create(path, config, window)?;
+            trace.note(&super::invocation())?;
+            Some(trace)
+        }
+        None => None,
+    };
+    // The timescale follows the configured clock.
     let mut waveform = match &args.vcd {
-        Some(path) => Some(vizsim::arch::trace::Waveform::create(
+        Some(path) => Some(Waveform::for_config(
             path,
-            config.memory.modules(),
-            vizsim::arch::trace::parse_window(&args.vcd_cycles)?,
+            config,
+            parse_window(&args.vcd_cycles)?,
         )?),
         None => None,
     };
     let probes = Probes {
         waveform: waveform.as_mut(),
+        command_trace: command_trace.as_mut(),
     };
     let report = run::run(&desc, args.frame.data.dir()?.as_deref(), probes)?;
+    if let Some(t) = command_trace {
+        let commands = t.finish()?;
+        println!(
+            "{commands} SDRAM commands -> {}",
+            args.command_trace
+                .as_ref()
+                .map(|p| p.display().to_string())
+                .unwrap_or_default()
+        );
+    }
     if let Some(w) = waveform {
         w.finish()?;
     }
