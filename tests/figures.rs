@@ -138,6 +138,7 @@ fn a_swept_field_splits_the_charts_one_per_value() {
         assert!(subcube.contains(tick), "no tick {tick}");
     }
     assert!(!subcube.contains("log2"));
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -175,6 +176,8 @@ fn no_chart_averages_two_values_of_a_swept_field() {
             .iter()
             .any(|n| n.contains(&format!("rays={r}.png"))));
     }
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_dir_all(&three);
 }
 
 #[test]
@@ -200,6 +203,7 @@ fn a_field_that_changes_the_map_splits_the_skippable_chart() {
         "{names:?}"
     );
     assert!(!names.contains("skippable-vs-subcube.png"), "{names:?}");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -239,6 +243,7 @@ fn fields_that_advance_together_are_named_not_split() {
             .count(),
         3
     );
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -255,6 +260,7 @@ fn a_text_valued_field_is_a_category_axis() {
     vizsim::figures::write_all(&lines, &dir).unwrap();
     let text = svg(&dir, "cycle-fps-vs-skip.policy-phantom-sphere-64");
     assert!(text.contains("leap-only") && text.contains("sample-then-leap"));
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -282,6 +288,8 @@ fn a_series_of_one_point_is_drawn() {
     vizsim::figures::write_all(&rays_sweep(&[4]), &results).unwrap();
     let text = svg(&results, "cycle-fps-vs-subcube-phantom-sphere-64");
     assert!(text.contains("class + hierarchy"), "{text}");
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_dir_all(&results);
 }
 
 #[test]
