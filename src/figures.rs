@@ -140,7 +140,15 @@ fn facets<'a>(lines: &[&'a Value], split_by: &[String]) -> Vec<Facet<'a>> {
             fixed: split
                 .iter()
                 .zip(key)
-                .map(|((axis, values), k)| ((*axis).clone(), values[k].clone()))
+                .map(|((axis, values), k)| {
+                    // Lines that do not sweep the field (results merged from other sweeps).
+                    let value = if values[k].is_empty() {
+                        "unswept".to_string()
+                    } else {
+                        values[k].clone()
+                    };
+                    ((*axis).clone(), value)
+                })
                 .collect(),
             lines,
         })
