@@ -2,14 +2,22 @@
 //! per frame against the frame number, one line per acceleration mode, one chart per dataset
 //! and classification; skippable sub-cubes and frame rate against the sub-cube size; the frame
 //! rate against every swept hardware field.
+//!
+//! A chart never averages over configurations: every swept field (a key of a result line's
+//! `axes`) with two or more values among the lines of a chart, other than the chart's x axis,
+//! splits it into one chart per combination of values, named in the title and the file name
+//! (`cycle-fps-vs-skip.latency-fuel-ray_queue.rays=8`). The one mean taken is over frames, and
+//! the y label says so. A field that advances together with the x axis (a `zip`) is named in
+//! the x label instead. Skippable sub-cubes are a property of the occupancy map: that chart is
+//! split only by the fields that change the map.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 use serde_json::Value;
 
-use crate::error::Result;
-use crate::plot::{LineChart, Series};
+use crate::error::{Error, Result};
+use crate::plot::{ChartOptions, LineChart, Series};
 use crate::tables::{field_text, mode_label, Metric};
 
 fn text(line: &Value, field: &str) -> String {
@@ -28,62 +36,284 @@ fn tf_label(tf: &str) -> &str {
     }
 }
 
+/// File names keep letters, digits, `.`, `_`, `=` and `-`; anything else becomes `-`.
 fn file_safe(name: &str) -> String {
     name.chars()
-        .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '=' | '-') {
+                c
+            } else {
+                '-'
+            }
+        })
         .collect()
 }
 
-/// Mean of `value` over lines grouped by (series, x).
-fn series_means(
+/// The value of swept field `axis` in a line, as text ("" when the line does not sweep it).
+fn axis_text(line: &Value, axis: &str) -> String {
+    match line.get("axes").and_then(|a| a.get(axis)) {
+        Some(Value::String(s)) => s.clone(),
+        Some(other) => other.to_string(),
+        None => String::new(),
+    }
+}
+
+fn num_axis(line: &Value, axis: &str) -> Option<f64> {
+    line.get("axes")?.get(axis)?.as_f64()
+}
+
+/// The swept fields of the lines.
+fn swept_axes(lines: &[&Value]) -> BTreeSet<String> {
+    lines
+        .iter()
+        .filter_map(|l| l.get("axes").and_then(Value::as_object))
+        .flat_map(|a| a.keys().cloned())
+        .collect()
+}
+
+/// The distinct values of a swept field among the lines, numbers in numeric order.
+fn axis_values(lines: &[&Value], axis: &str) -> Vec<String> {
+    let mut values: Vec<String> = lines
+        .iter()
+        .map(|l| axis_text(l, axis))
+        .collect::<BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    values.sort_by(|a, b| match (a.parse::<f64>(), b.parse::<f64>()) {
+        (Ok(x), Ok(y)) => x.total_cmp(&y),
+        _ => a.cmp(b),
+    });
+    values
+}
+
+/// One chart's share of the lines: the swept fields held fixed in it and their values.
+struct Facet<'a> {
+    fixed: Vec<(String, String)>,
+    lines: Vec<&'a Value>,
+}
+
+impl Facet<'_> {
+    /// " at ray_queue.rays = 8, skip.latency = 4" (empty without fixed fields).
+    fn title(&self) -> String {
+        if self.fixed.is_empty() {
+            return String::new();
+        }
+        let pairs: Vec<String> = self
+            .fixed
+            .iter()
+            .map(|(axis, value)| format!("{axis} = {value}"))
+            .collect();
+        format!(" at {}", pairs.join(", "))
+    }
+
+    /// "-ray_queue.rays=8-skip.latency=4" (empty without fixed fields).
+    fn file_suffix(&self) -> String {
+        self.fixed
+            .iter()
+            .map(|(axis, value)| format!("-{}", file_safe(&format!("{axis}={value}"))))
+            .collect()
+    }
+}
+
+/// Splits `lines` into one facet per combination of values of `split_by` (fields with one value
+/// among the lines are left out of it), in the fields' value order.
+fn facets<'a>(lines: &[&'a Value], split_by: &[String]) -> Vec<Facet<'a>> {
+    let split: Vec<(&String, Vec<String>)> = split_by
+        .iter()
+        .map(|axis| (axis, axis_values(lines, axis)))
+        .filter(|(_, values)| values.len() >= 2)
+        .collect();
+    let mut groups: BTreeMap<Vec<usize>, Vec<&'a Value>> = BTreeMap::new();
+    for &line in lines {
+        let key = split
+            .iter()
+            .map(|(axis, values)| {
+                let v = axis_text(line, axis);
+                values.iter().position(|x| *x == v).unwrap_or(0)
+            })
+            .collect();
+        groups.entry(key).or_default().push(line);
+    }
+    groups
+        .into_iter()
+        .map(|(key, lines)| Facet {
+            fixed: split
+                .iter()
+                .zip(key)
+                .map(|((axis, values), k)| {
+                    // Lines that do not sweep the field (results merged from other sweeps).
+                    let value = if values[k].is_empty() {
+                        "unswept".to_string()
+                    } else {
+                        values[k].clone()
+                    };
+                    ((*axis).clone(), value)
+                })
+                .collect(),
+            lines,
+        })
+        .collect()
+}
+
+/// The swept fields that split a chart whose x axis is `x_axis` (when it is a swept field):
+/// every field with 2+ values among the lines, except the x axis and the fields that advance
+/// with it (one value of theirs per x value: a `zip`), which are returned second.
+fn split_fields(lines: &[&Value], x_axis: Option<&str>) -> (Vec<String>, Vec<String>) {
+    let mut split = Vec::new();
+    let mut tied = Vec::new();
+    for axis in swept_axes(lines) {
+        if Some(axis.as_str()) == x_axis || axis_values(lines, &axis).len() < 2 {
+            continue;
+        }
+        let advances_with_x = x_axis.is_some_and(|x| {
+            let mut of_x: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+            for l in lines {
+                of_x.entry(axis_text(l, x))
+                    .or_default()
+                    .insert(axis_text(l, &axis));
+            }
+            of_x.values().all(|v| v.len() == 1)
+        });
+        if advances_with_x {
+            tied.push(axis);
+        } else {
+            split.push(axis);
+        }
+    }
+    (split, tied)
+}
+
+/// Everything that identifies a run's configuration except the frame.
+fn configuration(line: &Value) -> String {
+    format!(
+        "{} {} {} {} {}",
+        text(line, "model"),
+        raw_dataset(line),
+        text(line, "tf"),
+        text(line, "mode"),
+        line.get("axes").map(Value::to_string).unwrap_or_default()
+    )
+}
+
+/// One chart point before it is drawn: the values of its lines, their frames and the
+/// configurations they come from.
+#[derive(Default)]
+struct Point {
+    x: f64,
+    values: Vec<f64>,
+    frames: BTreeSet<String>,
+    configurations: BTreeSet<String>,
+}
+
+impl Point {
+    fn mean(&self) -> f64 {
+        self.values.iter().sum::<f64>() / self.values.len() as f64
+    }
+}
+
+/// Points grouped by (series, x), series in name order.
+fn points(
     lines: &[&Value],
     series_of: impl Fn(&Value) -> Option<String>,
     x_of: impl Fn(&Value) -> Option<f64>,
     y_of: impl Fn(&Value) -> Option<f64>,
-) -> Vec<Series> {
-    let mut acc: BTreeMap<String, BTreeMap<i64, (f64, f64, u32)>> = BTreeMap::new();
-    for line in lines {
+) -> BTreeMap<String, BTreeMap<i64, Point>> {
+    let mut acc: BTreeMap<String, BTreeMap<i64, Point>> = BTreeMap::new();
+    for &line in lines {
         let (Some(s), Some(x), Some(y)) = (series_of(line), x_of(line), y_of(line)) else {
             continue;
         };
-        let e = acc
+        let p = acc
             .entry(s)
             .or_default()
             .entry((x * 1000.0).round() as i64)
-            .or_insert((x, 0.0, 0));
-        e.1 += y;
-        e.2 += 1;
+            .or_default();
+        p.x = x;
+        p.values.push(y);
+        p.frames.insert(text(line, "frame"));
+        p.configurations.insert(configuration(line));
     }
-    acc.into_iter()
-        .map(|(name, points)| Series {
+    acc
+}
+
+/// The series of a chart whose points must each come from one configuration (averaged over
+/// its frames only), and what the mean is over ("" when every point is one frame).
+fn mean_over_frames(
+    chart: &str,
+    grouped: BTreeMap<String, BTreeMap<i64, Point>>,
+) -> Result<(Vec<Series>, String)> {
+    let mut counts = BTreeSet::new();
+    let mut series = Vec::new();
+    for (name, points) in grouped {
+        for p in points.values() {
+            if p.configurations.len() > 1 {
+                let mixed: Vec<&String> = p.configurations.iter().take(2).collect();
+                return Err(Error::Invalid(format!(
+                    "chart {chart}: a point of `{name}` would average over configurations ({} and {})",
+                    mixed[0], mixed[1]
+                )));
+            }
+            counts.insert(p.frames.len());
+        }
+        series.push(Series {
             name,
-            points: points
-                .values()
-                .map(|&(x, y, n)| (x, y / n as f64))
-                .collect(),
-        })
+            points: points.values().map(|p| (p.x, p.mean())).collect(),
+        });
+    }
+    let (low, high) = (
+        counts.first().copied().unwrap_or(1),
+        counts.last().copied().unwrap_or(1),
+    );
+    let note = match (low, high) {
+        (_, 1) => String::new(),
+        (l, h) if l == h => format!("mean over {h} frames"),
+        (l, h) => format!("mean over {l}–{h} frames"),
+    };
+    Ok((series, note))
+}
+
+fn with_note(label: &str, note: &str) -> String {
+    if note.is_empty() {
+        label.to_string()
+    } else {
+        format!("{label} ({note})")
+    }
+}
+
+/// Ticks of a sub-cube axis (log2 of the edge): every power of two from the smallest to the
+/// largest edge drawn, labelled `8³`.
+fn subcube_ticks(series: &[Series]) -> Vec<(f64, String)> {
+    let xs: Vec<f64> = series
+        .iter()
+        .flat_map(|s| s.points.iter().map(|p| p.0))
+        .collect();
+    let low = xs.iter().copied().fold(f64::MAX, f64::min).floor() as i32;
+    let high = xs.iter().copied().fold(f64::MIN, f64::max).ceil() as i32;
+    (low..=high)
+        .map(|k| (k as f64, format!("{}³", 1u64 << k.clamp(0, 62))))
         .collect()
+}
+
+fn mode_rank(m: &str) -> i64 {
+    m.split('+')
+        .find_map(|t| t.strip_prefix("leap"))
+        .and_then(|n| n.parse::<i64>().ok())
+        .map(|n| n * 4 + m.contains("hier") as i64 + 2 * (!m.contains("ert")) as i64)
+        .unwrap_or(if m == "none" { -2 } else { -1 })
+}
+
+fn tf_rank(tf: &str) -> (bool, String) {
+    (tf != "zero", tf.to_string())
 }
 
 /// Writes every chart the results support into `out`; returns how many.
 pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
     let mut written = 0;
+    let all: Vec<&Value> = lines.iter().collect();
     let models: BTreeSet<String> = lines.iter().map(|l| text(l, "model")).collect();
     // Grouped and named by the dataset's name; titled with its label (stand-ins marked).
     let datasets: BTreeSet<String> = lines.iter().map(raw_dataset).collect();
     let tfs: BTreeSet<String> = lines.iter().map(|l| text(l, "tf")).collect();
-    let axes: BTreeSet<String> = lines
-        .iter()
-        .filter_map(|l| l.get("axes").and_then(Value::as_object))
-        .flat_map(|a| a.keys().cloned())
-        .collect();
-    let mode_rank = |m: &str| {
-        m.split('+')
-            .find_map(|t| t.strip_prefix("leap"))
-            .and_then(|n| n.parse::<i64>().ok())
-            .map(|n| n * 2 + m.contains("hier") as i64)
-            .unwrap_or(if m == "none" { -2 } else { -1 })
-    };
     for model in &models {
         let (metric, y_label) = if model == "cycle" {
             (Metric::Cycles, "clock cycles per frame")
@@ -91,8 +321,9 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
             (Metric::Steps, "steps per frame")
         };
         for dataset in &datasets {
-            let of: Vec<&Value> = lines
+            let of: Vec<&Value> = all
                 .iter()
+                .copied()
                 .filter(|l| text(l, "model") == *model && raw_dataset(l) == *dataset)
                 .collect();
             let label = of.first().map(|l| text(l, "dataset")).unwrap_or_default();
@@ -103,34 +334,41 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                     .copied()
                     .filter(|l| text(l, "tf") == *tf)
                     .collect();
-                let frames: BTreeSet<String> = these.iter().map(|l| text(l, "frame")).collect();
-                if frames.len() < 2 {
-                    continue;
+                let (split, _) = split_fields(&these, None);
+                for facet in facets(&these, &split) {
+                    let frames: BTreeSet<String> =
+                        facet.lines.iter().map(|l| text(l, "frame")).collect();
+                    if frames.len() < 2 {
+                        continue;
+                    }
+                    let title =
+                        format!("{label}, {}{} ({model} model)", tf_label(tf), facet.title());
+                    let grouped = points(
+                        &facet.lines,
+                        |l| Some(text(l, "mode")),
+                        |l| num(l, "frame"),
+                        |l| metric.value(l),
+                    );
+                    let (mut series, note) = mean_over_frames(&title, grouped)?;
+                    series.sort_by_key(|s| mode_rank(&s.name));
+                    for s in &mut series {
+                        s.name = mode_label(&s.name);
+                    }
+                    LineChart {
+                        title: &title,
+                        x_label: "frame (5° per frame for a 72-frame orbit)",
+                        y_label: &with_note(y_label, &note),
+                        series,
+                        log_y: true,
+                    }
+                    .write(&out.join(format!(
+                        "{model}-per-frame-{}-{}{}",
+                        file_safe(dataset),
+                        file_safe(tf),
+                        facet.file_suffix()
+                    )))?;
+                    written += 1;
                 }
-                let mut series = series_means(
-                    &these,
-                    |l| Some(text(l, "mode")),
-                    |l| num(l, "frame"),
-                    |l| metric.value(l),
-                );
-                series.sort_by_key(|s| mode_rank(&s.name));
-                for s in &mut series {
-                    s.name = mode_label(&s.name);
-                }
-                let title = format!("{label}, {} ({model} model)", tf_label(tf));
-                LineChart {
-                    title: &title,
-                    x_label: "frame (5° per frame for a 72-frame orbit)",
-                    y_label,
-                    series,
-                    log_y: true,
-                }
-                .write(&out.join(format!(
-                    "{model}-per-frame-{}-{}",
-                    file_safe(dataset),
-                    file_safe(tf)
-                )))?;
-                written += 1;
             }
             // 2. Frame rate against the sub-cube size, '0' and class, with and without the
             //    hierarchy (ERT + leaping modes).
@@ -139,87 +377,159 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                 .copied()
                 .filter(|l| num(l, "subcube").unwrap_or(0.0) > 0.0 && l["ert"] == Value::Bool(true))
                 .collect();
-            let sizes: BTreeSet<i64> = leaping
-                .iter()
-                .filter_map(|l| num(l, "subcube").map(|s| s as i64))
-                .collect();
-            if sizes.len() >= 2 {
-                let series = series_means(
-                    &leaping,
+            let (split, _) = split_fields(&leaping, None);
+            for facet in facets(&leaping, &split) {
+                let sizes: BTreeSet<i64> = facet
+                    .lines
+                    .iter()
+                    .filter_map(|l| num(l, "subcube").map(|s| s as i64))
+                    .collect();
+                if sizes.len() < 2 {
+                    continue;
+                }
+                let title = format!(
+                    "{label}: frame rate against sub-cube size{} ({model} model)",
+                    facet.title()
+                );
+                let grouped = points(
+                    &facet.lines,
                     |l| {
+                        let tf = text(l, "tf");
+                        let hierarchy = l["hierarchy"] == Value::Bool(true);
+                        // Sorted: '0' before class, each without the hierarchy first.
                         Some(format!(
-                            "{}{}",
-                            tf_label(&text(l, "tf")),
-                            if l["hierarchy"] == Value::Bool(true) {
-                                " + hierarchy"
-                            } else {
-                                ""
-                            }
+                            "{}{tf}\u{0}{}\u{0}{}",
+                            (tf != "zero") as u8,
+                            hierarchy as u8,
+                            tf_label(&tf).to_string() + if hierarchy { " + hierarchy" } else { "" }
                         ))
                     },
                     |l| num(l, "subcube").map(f64::log2),
                     |l| Metric::Fps.value(l),
                 );
-                let title = format!("{label}: frame rate against sub-cube size ({model} model)");
+                let (mut series, note) = mean_over_frames(&title, grouped)?;
+                for s in &mut series {
+                    s.name = s.name.rsplit('\u{0}').next().unwrap_or_default().into();
+                }
+                let x_ticks = Some(subcube_ticks(&series));
                 LineChart {
                     title: &title,
-                    x_label: "log2 of the sub-cube edge (2 = 4³, 3 = 8³, 4 = 16³ …)",
-                    y_label: "frames per second (mean over frames)",
+                    x_label: "sub-cube size (log scale)",
+                    y_label: &with_note("frames per second", &note),
                     series,
                     log_y: false,
                 }
-                .write(&out.join(format!("{model}-fps-vs-subcube-{}", file_safe(dataset))))?;
+                .write_with(
+                    &out.join(format!(
+                        "{model}-fps-vs-subcube-{}{}",
+                        file_safe(dataset),
+                        facet.file_suffix()
+                    )),
+                    &ChartOptions { x_ticks },
+                )?;
                 written += 1;
             }
-            // 3. Frame rate against each swept hardware field.
-            for axis in &axes {
-                let values: BTreeSet<String> = of.iter().map(|l| text(l, axis)).collect();
-                if values.len() < 2 || of.iter().any(|l| num_axis(l, axis).is_none()) {
+            // 3. Frame rate against each swept hardware field (numbers on a linear axis, other
+            //    values in their order, evenly spaced).
+            for axis in swept_axes(&of) {
+                let values = axis_values(&of, &axis);
+                if values.len() < 2 {
                     continue;
                 }
-                let series = series_means(
-                    &of,
-                    |l| {
-                        Some(format!(
-                            "{} {}",
-                            tf_label(&text(l, "tf")),
-                            mode_label(&text(l, "mode"))
-                        ))
-                    },
-                    |l| num_axis(l, axis),
-                    |l| Metric::Fps.value(l),
-                );
-                let title = format!("{label}: frame rate against {axis} ({model} model)");
-                LineChart {
-                    title: &title,
-                    x_label: axis,
-                    y_label: "frames per second (mean over frames)",
-                    series,
-                    log_y: false,
+                let numeric = of.iter().all(|l| num_axis(l, &axis).is_some());
+                let x_of = |l: &Value| {
+                    if numeric {
+                        num_axis(l, &axis)
+                    } else {
+                        let v = axis_text(l, &axis);
+                        values.iter().position(|x| *x == v).map(|i| i as f64)
+                    }
+                };
+                let (split, tied) = split_fields(&of, Some(&axis));
+                let x_label = if tied.is_empty() {
+                    axis.clone()
+                } else {
+                    format!("{axis} ({} advancing with it)", tied.join(", "))
+                };
+                for facet in facets(&of, &split) {
+                    if axis_values(&facet.lines, &axis).len() < 2 {
+                        continue;
+                    }
+                    let title = format!(
+                        "{label}: frame rate against {axis}{} ({model} model)",
+                        facet.title()
+                    );
+                    let grouped = points(
+                        &facet.lines,
+                        |l| {
+                            let (tf, mode) = (text(l, "tf"), text(l, "mode"));
+                            let (tf_order, mode_order) = (tf_rank(&tf), mode_rank(&mode));
+                            Some(format!(
+                                "{}{}\u{0}{:06}\u{0}{}, {}",
+                                tf_order.0 as u8,
+                                tf_order.1,
+                                mode_order + 100,
+                                tf_label(&tf),
+                                mode_label(&mode)
+                            ))
+                        },
+                        x_of,
+                        |l| Metric::Fps.value(l),
+                    );
+                    let (mut series, note) = mean_over_frames(&title, grouped)?;
+                    for s in &mut series {
+                        s.name = s.name.rsplit('\u{0}').next().unwrap_or_default().into();
+                    }
+                    let x_ticks = (!numeric).then(|| {
+                        values
+                            .iter()
+                            .enumerate()
+                            .map(|(i, v)| (i as f64, v.clone()))
+                            .collect()
+                    });
+                    LineChart {
+                        title: &title,
+                        x_label: &x_label,
+                        y_label: &with_note("frames per second", &note),
+                        series,
+                        log_y: false,
+                    }
+                    .write_with(
+                        &out.join(format!(
+                            "{model}-fps-vs-{}-{}{}",
+                            file_safe(&axis),
+                            file_safe(dataset),
+                            facet.file_suffix()
+                        )),
+                        &ChartOptions { x_ticks },
+                    )?;
+                    written += 1;
                 }
-                .write(&out.join(format!(
-                    "{model}-fps-vs-{}-{}",
-                    file_safe(axis),
-                    file_safe(dataset)
-                )))?;
-                written += 1;
             }
         }
     }
     // 4. Skippable sub-cubes against the sub-cube size ('0' and class): a property of the
-    //    dataset and transfer function, one chart for all datasets.
-    let maps: Vec<&Value> = lines
+    //    dataset, transfer function and map, one chart for all datasets (split by the swept
+    //    fields that change the map).
+    let maps: Vec<&Value> = all
         .iter()
+        .copied()
         .filter(|l| {
             l.get("skippable_subcubes_percent").is_some() && l["hierarchy"] != Value::Bool(true)
         })
         .collect();
-    if !maps.is_empty() {
-        let series = series_means(
-            &maps,
+    let map_fields: Vec<String> = swept_axes(&maps)
+        .into_iter()
+        .filter(|axis| changes_the_map(&maps, axis))
+        .collect();
+    for facet in facets(&maps, &map_fields) {
+        let grouped = points(
+            &facet.lines,
             |l| {
                 Some(format!(
-                    "{} {}",
+                    "{}\u{0}{}\u{0}{} {}",
+                    raw_dataset(l),
+                    (text(l, "tf") != "zero") as u8,
                     text(l, "dataset"),
                     tf_label(&text(l, "tf"))
                 ))
@@ -227,17 +537,70 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
             |l| num(l, "subcube").map(f64::log2),
             |l| Metric::Skippable.value(l),
         );
+        // One map, one value: frames, models and modes that share a map agree.
+        let differing = grouped.values().flat_map(|p| p.values()).any(|p| {
+            p.values
+                .iter()
+                .any(|v| (v - p.values[0]).abs() > 1e-9 * p.values[0].abs().max(1.0))
+        });
+        let series: Vec<Series> = grouped
+            .into_iter()
+            .map(|(name, points)| Series {
+                name: name.rsplit('\u{0}').next().unwrap_or_default().into(),
+                points: points.values().map(|p| (p.x, p.mean())).collect(),
+            })
+            .collect();
+        let x_ticks = Some(subcube_ticks(&series));
+        let title = format!(
+            "skippable (empty) sub-cubes against sub-cube size{}",
+            facet.title()
+        );
         LineChart {
-            title: "skippable (empty) sub-cubes against sub-cube size",
-            x_label: "log2 of the sub-cube edge (2 = 4³, 3 = 8³, 4 = 16³ …)",
-            y_label: "skippable sub-cubes (%)",
+            title: &title,
+            x_label: "sub-cube size (log scale)",
+            y_label: if differing {
+                "skippable sub-cubes (%, mean over the runs of a map)"
+            } else {
+                "skippable sub-cubes (%)"
+            },
             series,
             log_y: false,
         }
-        .write(&out.join("skippable-vs-subcube"))?;
+        .write_with(
+            &out.join(format!("skippable-vs-subcube{}", facet.file_suffix())),
+            &ChartOptions { x_ticks },
+        )?;
         written += 1;
     }
     Ok(written)
+}
+
+/// Whether the skippable share differs between values of `axis` for the same dataset,
+/// classification, sub-cube size and other swept fields.
+fn changes_the_map(maps: &[&Value], axis: &str) -> bool {
+    let mut by_map: BTreeMap<String, BTreeMap<String, f64>> = BTreeMap::new();
+    for l in maps {
+        let Some(v) = Metric::Skippable.value(l) else {
+            continue;
+        };
+        let mut others = l.get("axes").cloned().unwrap_or(Value::Null);
+        if let Some(o) = others.as_object_mut() {
+            o.remove(axis);
+        }
+        let key = format!(
+            "{} {} {} {}",
+            raw_dataset(l),
+            text(l, "tf"),
+            text(l, "subcube"),
+            others
+        );
+        let seen = by_map.entry(key).or_default();
+        seen.entry(axis_text(l, axis)).or_insert(v);
+    }
+    by_map.values().any(|of_axis| {
+        let first = of_axis.values().next().copied().unwrap_or(0.0);
+        of_axis.values().any(|v| (v - first).abs() > 1e-9)
+    })
 }
 
 fn raw_dataset(line: &Value) -> String {
@@ -245,8 +608,4 @@ fn raw_dataset(line: &Value) -> String {
         .and_then(Value::as_str)
         .unwrap_or_default()
         .to_string()
-}
-
-fn num_axis(line: &Value, axis: &str) -> Option<f64> {
-    line.get("axes")?.get(axis)?.as_f64()
 }

@@ -26,7 +26,8 @@ pub struct DemoArgs {
 
 /// Orbits of a phantom (and of fuel when the data folder holds it) as contact sheets, and a
 /// front-and-side gallery of every dataset with both of its transfer functions, all rendered
-/// by the float reference through the one run path.
+/// by the float reference through the one run path. Every panel is labelled with its dataset,
+/// transfer function and view (orbit panels: "frame k/N").
 pub fn run(args: DemoArgs) -> Result<()> {
     let (out, frames) = (args.out.as_path(), args.frames);
     anyhow::ensure!(frames >= 1, "--frames must be at least 1");
@@ -71,7 +72,21 @@ pub fn run(args: DemoArgs) -> Result<()> {
             images.push(run::execute(&view, &prepared, Probes::default())?.frame);
         }
         let step = (frames / 12).max(1) as usize;
-        let picked: Vec<&vizsim::render::Frame> = images.iter().step_by(step).take(12).collect();
+        let picked: Vec<(&vizsim::render::Frame, Vec<String>)> = images
+            .iter()
+            .enumerate()
+            .step_by(step)
+            .take(12)
+            .map(|(k, image)| {
+                (
+                    image,
+                    vec![
+                        volume.name.clone(),
+                        format!("{}, frame {k}/{frames}", tf_label(&base.tf)),
+                    ],
+                )
+            })
+            .collect();
         let path = out.join(format!("orbit-{}.png", file_safe(&volume.name)));
         write_contact_sheet(&picked, 6, &path)?;
         println!(
@@ -87,16 +102,24 @@ pub fn run(args: DemoArgs) -> Result<()> {
         for kind in ["zero", "class"] {
             let base = RunDescription::new(spec, kind, Model::Float, hardware.clone());
             let prepared = run::prepare(&base, &volume)?;
-            for view in ["front", "orbit:1/4"] {
+            for (view, view_label) in [("front", "front"), ("orbit:1/4", "side (orbit 1/4)")] {
                 let desc = RunDescription {
                     view: view.into(),
                     ..base.clone()
                 };
-                row.push(run::execute(&desc, &prepared, Probes::default())?.frame);
+                let label = vec![
+                    volume.name.clone(),
+                    format!("{}, {view_label}", tf_label(kind)),
+                ];
+                row.push((
+                    run::execute(&desc, &prepared, Probes::default())?.frame,
+                    label,
+                ));
             }
         }
         let path = out.join(format!("gallery-{}.png", file_safe(&volume.name)));
-        write_contact_sheet(&row.iter().collect::<Vec<_>>(), 4, &path)?;
+        let panels: Vec<_> = row.iter().map(|(f, l)| (f, l.clone())).collect();
+        write_contact_sheet(&panels, 4, &path)?;
         println!(
             "{}: zero | class, front and side -> {}",
             volume.name,
@@ -149,6 +172,15 @@ fn quick_experiment(data_dir: Option<&Path>, out: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Transfer functions as the tables and charts name them: '0' and class.
+fn tf_label(tf: &str) -> &str {
+    if tf == "zero" {
+        "'0'"
+    } else {
+        tf
+    }
+}
+
 fn file_safe(name: &str) -> String {
     name.chars()
         .map(|c| {
@@ -161,36 +193,16 @@ fn file_safe(name: &str) -> String {
         .collect()
 }
 
-/// Tiles frames of equal size into one PNG, `columns` per row.
+/// Tiles frames of equal size into one PNG, `columns` per row, each under a strip with its
+/// label (dataset, transfer function, view).
 fn write_contact_sheet(
-    frames: &[&vizsim::render::Frame],
+    panels: &[(&vizsim::render::Frame, Vec<String>)],
     columns: usize,
     path: &Path,
 ) -> Result<()> {
-    let Some(first) = frames.first() else {
+    if panels.is_empty() {
         return Ok(());
-    };
-    let (w, h) = (first.width, first.height);
-    let rows = frames.len().div_ceil(columns) as u32;
-    let cols = columns.min(frames.len()) as u32;
-    let sheet = vizsim::render::Frame {
-        width: w * cols,
-        height: h * rows,
-        pixels: {
-            let mut pixels = vec![[0u8, 0, 0, 255]; (w * cols * h * rows) as usize];
-            for (i, f) in frames.iter().enumerate() {
-                let (ox, oy) = ((i as u32 % cols) * w, (i as u32 / cols) * h);
-                for y in 0..h {
-                    for x in 0..w {
-                        pixels[((oy + y) * w * cols + ox + x) as usize] =
-                            f.pixels[(y * w + x) as usize];
-                    }
-                }
-            }
-            pixels
-        },
-        rays: Vec::new(),
-    };
-    sheet.write_png(path)?;
+    }
+    vizsim::plot::contact_sheet(panels, columns)?.write_png(path)?;
     Ok(())
 }

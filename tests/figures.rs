@@ -1,0 +1,357 @@
+//! Charts of sweep results (`vizsim plot`, issue 13 §4): a swept field splits the charts
+//! instead of being averaged over, one-point series are drawn, and the demo's contact sheets
+//! carry their labels.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+use serde_json::{json, Value};
+use vizsim::plot::{contact_sheet, label_strip_height, LineChart, Series, SHEET_STRIP_BACKGROUND};
+use vizsim::render::Frame;
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("vizsim-figures-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// One result line as a sweep writes it (the fields the charts read).
+fn line(mode: &str, frame: u32, axes: Value, fps: f64, skippable: f64) -> Value {
+    let subcube = mode
+        .split('+')
+        .find_map(|t| t.strip_prefix("leap"))
+        .map_or(0, |n| n.parse::<u32>().unwrap());
+    let mut l = json!({
+        "dataset": "phantom:sphere:64",
+        "dataset_label": "phantom:sphere:64",
+        "tf": "class",
+        "mode": mode,
+        "model": "cycle",
+        "frame": frame,
+        "view": format!("orbit:{frame}/72"),
+        "axes": axes,
+        "subcube": subcube,
+        "hierarchy": mode.contains("hier"),
+        "ert": mode.contains("ert"),
+        "fps": fps,
+        "cycles": 1e8 / fps,
+        "steps": 1e7 / fps,
+    });
+    if subcube > 0 {
+        l["skippable_subcubes_percent"] = json!(skippable);
+    }
+    l
+}
+
+const MODES: [&str; 5] = ["none", "ert", "ert+leap4", "ert+leap8", "ert+leap8+hier"];
+
+/// Frames 0 and 1 of every mode for each value of `ray_queue.rays` (a constant
+/// `ray_queue.selection` alongside); the frame rate scales with the rays, so an average over
+/// them would be a value no run had.
+fn rays_sweep(rays: &[u32]) -> Vec<Value> {
+    let mut lines = Vec::new();
+    for &r in rays {
+        for (m, mode) in MODES.iter().enumerate() {
+            for frame in 0..2 {
+                let axes = json!({"ray_queue.rays": r, "ray_queue.selection": "lagging-first"});
+                let fps = (100 + 10 * m as u32 + frame) as f64 * r as f64;
+                lines.push(line(mode, frame, axes, fps, 40.0 + m as f64));
+            }
+        }
+    }
+    lines
+}
+
+fn charts(dir: &Path) -> BTreeSet<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect()
+}
+
+fn svg(dir: &Path, stem: &str) -> String {
+    std::fs::read_to_string(dir.join(format!("{stem}.svg")))
+        .unwrap_or_else(|e| panic!("{stem}.svg: {e}; there are {:?}", charts(dir)))
+}
+
+#[test]
+fn a_swept_field_splits_the_charts_one_per_value() {
+    let dir = scratch("facets");
+    let lines = rays_sweep(&[4, 8]);
+    let written = vizsim::figures::write_all(&lines, &dir).unwrap();
+    let names = charts(&dir);
+    let stems: BTreeSet<&str> = names
+        .iter()
+        .filter_map(|n| n.strip_suffix(".png"))
+        .collect();
+    for stem in &stems {
+        assert!(names.contains(&format!("{stem}.svg")), "{stem}: no SVG");
+    }
+    let expected: BTreeSet<&str> = [
+        "cycle-per-frame-phantom-sphere-64-class-ray_queue.rays=4",
+        "cycle-per-frame-phantom-sphere-64-class-ray_queue.rays=8",
+        "cycle-fps-vs-subcube-phantom-sphere-64-ray_queue.rays=4",
+        "cycle-fps-vs-subcube-phantom-sphere-64-ray_queue.rays=8",
+        // Its own x axis: one chart, not split by it; the constant selection splits nothing.
+        "cycle-fps-vs-ray_queue.rays-phantom-sphere-64",
+        // The map does not depend on the rays: one chart.
+        "skippable-vs-subcube",
+    ]
+    .into_iter()
+    .collect();
+    assert_eq!(stems, expected);
+    assert_eq!(written, expected.len());
+    assert_eq!(names.len(), 2 * written, "{names:?}");
+    // Titles name the value, and only that value.
+    for r in [4, 8] {
+        let other = if r == 4 { 8 } else { 4 };
+        for stem in [
+            format!("cycle-per-frame-phantom-sphere-64-class-ray_queue.rays={r}"),
+            format!("cycle-fps-vs-subcube-phantom-sphere-64-ray_queue.rays={r}"),
+        ] {
+            let text = svg(&dir, &stem);
+            assert!(text.contains(&format!("ray_queue.rays = {r}")), "{stem}");
+            assert!(
+                !text.contains(&format!("ray_queue.rays = {other}")),
+                "{stem}"
+            );
+            assert!(
+                !text.contains("ray_queue.selection"),
+                "{stem}: a constant field named"
+            );
+        }
+    }
+    // The one mean left is over frames, and the label says so; the per-frame chart has none.
+    let subcube = svg(
+        &dir,
+        "cycle-fps-vs-subcube-phantom-sphere-64-ray_queue.rays=4",
+    );
+    assert!(subcube.contains("mean over 2 frames"), "{subcube}");
+    let per_frame = svg(
+        &dir,
+        "cycle-per-frame-phantom-sphere-64-class-ray_queue.rays=4",
+    );
+    assert!(!per_frame.contains("mean over"));
+    // Sub-cube ticks are the sizes, not their logarithms.
+    for tick in ["4³", "8³"] {
+        assert!(subcube.contains(tick), "no tick {tick}");
+    }
+    assert!(!subcube.contains("log2"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn no_chart_averages_two_values_of_a_swept_field() {
+    // With the rays at 4 and 8, every frame rate drawn is one of the runs' (or the mean of two
+    // frames of one configuration), never the mean over the rays: the largest tick of the
+    // rays=4 chart stays below the smallest rate at rays=8.
+    let dir = scratch("no-mixing");
+    let lines = rays_sweep(&[4, 8]);
+    vizsim::figures::write_all(&lines, &dir).unwrap();
+    let text = svg(
+        &dir,
+        "cycle-fps-vs-subcube-phantom-sphere-64-ray_queue.rays=4",
+    );
+    let numbers: Vec<f64> = text
+        .split(['>', '<'])
+        .filter_map(|t| t.trim().parse::<f64>().ok())
+        .collect();
+    assert!(!numbers.is_empty(), "no tick labels found");
+    // Rates at rays=4 are 480..=584; at rays=8 960 and more. Ticks stay near the data.
+    assert!(
+        numbers.iter().all(|&n| n < 700.0),
+        "rays=4 chart reaches {numbers:?}"
+    );
+    // Three values split into three charts each.
+    let three = scratch("three-values");
+    vizsim::figures::write_all(&rays_sweep(&[4, 8, 16]), &three).unwrap();
+    let per_frame: Vec<String> = charts(&three)
+        .into_iter()
+        .filter(|n| n.starts_with("cycle-per-frame") && n.ends_with(".png"))
+        .collect();
+    assert_eq!(per_frame.len(), 3, "{per_frame:?}");
+    for r in [4, 8, 16] {
+        assert!(per_frame
+            .iter()
+            .any(|n| n.contains(&format!("rays={r}.png"))));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_dir_all(&three);
+}
+
+#[test]
+fn a_field_that_changes_the_map_splits_the_skippable_chart() {
+    let dir = scratch("map-field");
+    let mut lines = Vec::new();
+    for dilate in [0, 1] {
+        for mode in ["ert+leap4", "ert+leap8"] {
+            for frame in 0..2 {
+                let axes = json!({"occupancy.dilation": dilate});
+                lines.push(line(mode, frame, axes, 500.0, 50.0 - 20.0 * dilate as f64));
+            }
+        }
+    }
+    vizsim::figures::write_all(&lines, &dir).unwrap();
+    let names = charts(&dir);
+    assert!(
+        names.contains("skippable-vs-subcube-occupancy.dilation=0.png"),
+        "{names:?}"
+    );
+    assert!(
+        names.contains("skippable-vs-subcube-occupancy.dilation=1.png"),
+        "{names:?}"
+    );
+    assert!(!names.contains("skippable-vs-subcube.png"), "{names:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn fields_that_advance_together_are_named_not_split() {
+    // A zip: t_rcd and t_rp advance together; charts against one name the other.
+    let dir = scratch("zip");
+    let mut lines = Vec::new();
+    for t in [2, 3, 4] {
+        for frame in 0..2 {
+            let axes = json!({"sdram.t_rcd": t, "sdram.t_rp": t});
+            lines.push(line(
+                "ert+leap8",
+                frame,
+                axes,
+                600.0 - 50.0 * t as f64,
+                40.0,
+            ));
+        }
+    }
+    vizsim::figures::write_all(&lines, &dir).unwrap();
+    let names = charts(&dir);
+    assert!(
+        names.contains("cycle-fps-vs-sdram.t_rcd-phantom-sphere-64.png"),
+        "{names:?}"
+    );
+    assert!(
+        names.contains("cycle-fps-vs-sdram.t_rp-phantom-sphere-64.png"),
+        "{names:?}"
+    );
+    let text = svg(&dir, "cycle-fps-vs-sdram.t_rcd-phantom-sphere-64");
+    assert!(text.contains("sdram.t_rp advancing with it"), "{text}");
+    // The per-frame charts are split by both (one combination per value).
+    assert_eq!(
+        names
+            .iter()
+            .filter(|n| n.starts_with("cycle-per-frame") && n.ends_with(".png"))
+            .count(),
+        3
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_text_valued_field_is_a_category_axis() {
+    let dir = scratch("categories");
+    let mut lines = Vec::new();
+    for policy in ["leap-only", "sample-then-leap"] {
+        for frame in 0..2 {
+            let axes = json!({"skip.policy": policy});
+            let fps = if policy == "leap-only" { 700.0 } else { 650.0 };
+            lines.push(line("ert+leap8", frame, axes, fps, 40.0));
+        }
+    }
+    vizsim::figures::write_all(&lines, &dir).unwrap();
+    let text = svg(&dir, "cycle-fps-vs-skip.policy-phantom-sphere-64");
+    assert!(text.contains("leap-only") && text.contains("sample-then-leap"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_series_of_one_point_is_drawn() {
+    let dir = scratch("one-point");
+    let stem = dir.join("single");
+    LineChart {
+        title: "one point",
+        x_label: "x",
+        y_label: "y",
+        series: vec![Series {
+            name: "only".into(),
+            points: vec![(3.0, 5.0)],
+        }],
+        log_y: false,
+    }
+    .write(&stem)
+    .unwrap();
+    assert!(dir.join("single.png").is_file());
+    let text = svg(&dir, "single");
+    // The marker: a line of one point draws nothing.
+    assert!(text.contains("<circle"), "{text}");
+    // The hierarchy at one size, among results: still charted.
+    let results = scratch("one-point-results");
+    vizsim::figures::write_all(&rays_sweep(&[4]), &results).unwrap();
+    let text = svg(&results, "cycle-fps-vs-subcube-phantom-sphere-64");
+    assert!(text.contains("class + hierarchy"), "{text}");
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_dir_all(&results);
+}
+
+#[test]
+fn contact_sheet_panels_carry_a_label_strip() {
+    let frame = |rgba: [u8; 4]| Frame {
+        width: 96,
+        height: 64,
+        pixels: vec![rgba; 96 * 64],
+        rays: Vec::new(),
+    };
+    let (a, b, c) = (
+        frame([200, 30, 30, 255]),
+        frame([30, 200, 30, 255]),
+        frame([30, 30, 200, 255]),
+    );
+    let panels = vec![
+        (
+            &a,
+            vec!["fuel".to_string(), "class, frame 0/72".to_string()],
+        ),
+        (
+            &b,
+            vec!["fuel".to_string(), "class, frame 6/72".to_string()],
+        ),
+        (
+            &c,
+            vec!["fuel".to_string(), "class, frame 12/72".to_string()],
+        ),
+    ];
+    let sheet = contact_sheet(&panels, 2).unwrap();
+    let strip = label_strip_height(2);
+    assert!(strip > 0);
+    // Two columns, two rows, every panel the frame plus its strip.
+    assert_eq!((sheet.width, sheet.height), (2 * 96, 2 * (64 + strip)));
+    assert_eq!(sheet.pixels.len(), (sheet.width * sheet.height) as usize);
+    let at = |x: u32, y: u32| sheet.pixels[(y * sheet.width + x) as usize];
+    for (i, colour) in [[200, 30, 30, 255], [30, 200, 30, 255], [30, 30, 200, 255]]
+        .into_iter()
+        .enumerate()
+    {
+        let (ox, oy) = ((i as u32 % 2) * 96, (i as u32 / 2) * (64 + strip));
+        // The frame sits under its strip, unchanged.
+        assert_eq!(at(ox + 10, oy + strip + 10), colour);
+        assert_eq!(at(ox + 95, oy + strip + 63), colour);
+        // The strip holds text: pixels other than its background.
+        let text_pixels = (oy..oy + strip)
+            .flat_map(|y| (ox + 1..ox + 96).map(move |x| (x, y)))
+            .filter(|&(x, y)| at(x, y) != SHEET_STRIP_BACKGROUND)
+            .count();
+        assert!(text_pixels > 20, "panel {i}: {text_pixels} text pixels");
+    }
+    // The empty fourth cell stays black.
+    assert_eq!(at(96 + 10, 64 + strip + 10), [0, 0, 0, 255]);
+    // Deterministic.
+    let again = contact_sheet(&panels, 2).unwrap();
+    assert_eq!(again.pixels, sheet.pixels);
+    // Frames of different sizes are refused.
+    let small = Frame {
+        width: 10,
+        height: 10,
+        pixels: vec![[0, 0, 0, 255]; 100],
+        rays: Vec::new(),
+    };
+    assert!(contact_sheet(&[(&a, vec![]), (&small, vec![])], 2).is_err());
+}
