@@ -170,3 +170,77 @@ fn an_io_error_names_the_path_once_and_the_option() {
     );
     assert!(!png.exists());
 }
+
+#[test]
+fn tables_name_swept_columns_print_every_metric_and_format_columns_one_way() {
+    let dir = scratch("tables");
+    let exp = dir.join("t.toml");
+    std::fs::write(
+        &exp,
+        "name = \"t\"\ndatasets = [\"phantom:metaballs:32\", \"phantom:shells:24\"]\nmodes = [\"none\", \"ert+leap4\"]\nmodels = [\"step\"]\n[frames]\norbit = 8\nselect = [0, 1]\nsize = \"24x24\"\n[axes]\n\"skip.latency\" = [4, 8]\n",
+    )
+    .unwrap();
+    let out = dir.join("o");
+    let run = vizsim(&[
+        "sweep",
+        exp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(run.status.success(), "{}", text(&run).1);
+    let table = vizsim(&[
+        "table",
+        out.to_str().unwrap(),
+        "--rows",
+        "dataset,tf,mode",
+        "--columns",
+        "skip.latency",
+        "--metric",
+        "steps,skippable",
+    ]);
+    let (stdout, stderr) = text(&table);
+    assert!(table.status.success(), "{stderr}");
+    assert!(
+        stdout.contains("| skip.latency = 4 | skip.latency = 8 |"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("### steps per frame"), "{stdout}");
+    assert!(
+        stdout.contains("### skippable sub-cubes (%) (occupancy map)"),
+        "{stdout}"
+    );
+    assert!(
+        !stdout.contains("skippable sub-cubes (%) (cycle"),
+        "{stdout}"
+    );
+    // One number format per column: within a column every cell has the same number of
+    // decimals (or every cell is in millions).
+    for block in stdout.split("### ").skip(1) {
+        let rows: Vec<Vec<String>> = block
+            .lines()
+            .filter(|l| l.starts_with('|') && !l.contains("---") && !l.contains("dataset"))
+            .map(|l| l.split('|').map(|c| c.trim().to_string()).collect())
+            .collect();
+        let width = rows.first().map_or(0, Vec::len);
+        for c in 4..width.saturating_sub(1) {
+            let shapes: std::collections::BTreeSet<(bool, usize)> = rows
+                .iter()
+                .filter(|r| r[c] != "–")
+                .map(|r| {
+                    let cell = r[c].trim_end_matches('*');
+                    (
+                        cell.ends_with(" M"),
+                        cell.split('.')
+                            .nth(1)
+                            .map_or(0, |d| d.trim_end_matches(" M").len()),
+                    )
+                })
+                .collect();
+            assert!(
+                shapes.len() <= 1,
+                "column {c} mixes formats {shapes:?}:\n{block}"
+            );
+        }
+    }
+}
