@@ -179,7 +179,7 @@ impl HardwareConfig {
     pub fn load(path: Option<&Path>, overrides: &[String]) -> Result<HardwareConfig> {
         match path {
             Some(p) => {
-                let text = std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?;
+                let text = crate::input::read_text(p)?;
                 Self::from_toml_str(&text, &p.display().to_string(), overrides)
             }
             None => Self::from_toml_str(DEFAULT_TOML, DEFAULT_NAME, overrides),

@@ -12,6 +12,7 @@ pub mod error;
 pub mod experiment;
 pub mod figures;
 pub mod functional;
+pub mod input;
 pub mod leapvalues;
 pub mod occupancy;
 pub mod output;

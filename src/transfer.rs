@@ -44,7 +44,7 @@ pub struct TransferFunction {
 
 impl TransferFunction {
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::input::read_text(path)?;
         let stem = path
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())

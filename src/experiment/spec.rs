@@ -209,7 +209,7 @@ const MODE_FIELDS: [&str; 4] = [
 
 /// Reads and expands an experiment file.
 pub fn load(path: &Path, data_dir: Option<&Path>) -> Result<Expansion> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::input::read_text(path)?;
     expand(&text, &path.display().to_string(), data_dir)
 }
 
@@ -242,7 +242,7 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
         }
     }
     let base_text = match &experiment.config {
-        Some(p) => std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?,
+        Some(p) => crate::input::read_text(p)?,
         None => config::DEFAULT_TOML.to_string(),
     };
     let base_name = experiment

@@ -35,7 +35,7 @@ struct Descriptor {
 /// Reads a dataset descriptor TOML (unknown fields rejected) and the raw or NRRD file it names,
 /// relative to the descriptor's folder.
 pub fn load_descriptor(path: &Path) -> Result<Volume> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::input::read_text(path)?;
     let desc: Descriptor = toml::from_str(&text)
         .map_err(|e| Error::format(path, format!("invalid dataset descriptor: {e}")))?;
     let source = path.display().to_string();

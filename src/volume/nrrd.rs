@@ -8,7 +8,6 @@
 //! makes the loader panic or allocate more than the header's (checked) volume size.
 
 use std::collections::BTreeMap;
-use std::fs::File;
 use std::io::{self, BufRead, BufReader, Read};
 use std::path::Path;
 
@@ -24,7 +23,7 @@ const MAX_HEADER_BYTES: u64 = 1 << 20;
 
 /// Loads a `.nrrd` or `.nhdr` file.
 pub fn load_nrrd(path: &Path) -> Result<Volume> {
-    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let file = crate::input::open_regular(path)?;
     let file_len = file.metadata().map_err(|e| Error::io(path, e))?.len();
     let mut reader = BufReader::new(file);
     let header = read_header(&mut reader, path)?;
@@ -33,7 +32,7 @@ pub fn load_nrrd(path: &Path) -> Result<Volume> {
     let data = match header.fields.get("data file") {
         Some(data_file) => {
             let data_path = path.parent().unwrap_or(Path::new("")).join(data_file);
-            let data = File::open(&data_path).map_err(|e| Error::io(&data_path, e))?;
+            let data = crate::input::open_regular(&data_path)?;
             let available = data.metadata().map_err(|e| Error::io(&data_path, e))?.len();
             read_payload(data, &data_path, available, &layout)?
         }

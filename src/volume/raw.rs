@@ -1,7 +1,6 @@
 //! Headerless raw volumes (8-bit, or 16-bit little-endian; x fastest) and the TOML dataset
 //! descriptor that names a raw file with its dimensions and spacing.
 
-use std::fs::File;
 use std::io::{self, Read};
 use std::path::Path;
 
@@ -102,7 +101,7 @@ pub fn load_raw_with_endian(
 ) -> Result<Volume> {
     // Validate before touching the file so absurd dims never lead to an allocation.
     let expected = payload_bytes(dims, bits).map_err(|m| Error::format(path, m))?;
-    let mut file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut file = crate::input::open_regular(path)?;
     let found = file.metadata().map_err(|e| Error::io(path, e))?.len();
     if found != expected as u64 {
         return Err(Error::format(

@@ -1,0 +1,149 @@
+//! Hostile inputs (issue 17): inputs that are FIFOs or devices, unbounded or oversized text
+//! inputs, absurd numbers. Each must end quickly with a non-zero exit and a message naming
+//! the path or field; none may hang, panic or exhaust memory.
+
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("vizsim-hostile-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Runs vizsim, killing it after 30 s (a hang is a failure, not a stuck test run).
+fn run_bounded(args: &[&str]) -> (bool, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run vizsim");
+    let start = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            let mut stderr = String::new();
+            use std::io::Read;
+            child
+                .stderr
+                .take()
+                .unwrap()
+                .read_to_string(&mut stderr)
+                .unwrap();
+            return (status.success(), stderr);
+        }
+        if start.elapsed() > Duration::from_secs(30) {
+            child.kill().unwrap();
+            panic!("{args:?} hung for 30 s");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn mkfifo(path: &std::path::Path) {
+    let ok = Command::new("mkfifo")
+        .arg(path)
+        .status()
+        .map(|s| s.success());
+    assert!(matches!(ok, Ok(true)), "mkfifo {}", path.display());
+}
+
+fn assert_refused(args: &[&str], needles: &[&str]) {
+    let (ok, stderr) = run_bounded(args);
+    assert!(!ok, "{args:?} succeeded");
+    assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
+    for n in needles {
+        assert!(stderr.contains(n), "{args:?}: stderr lacks {n:?}: {stderr}");
+    }
+}
+
+#[test]
+fn fifos_and_devices_are_refused_not_read() {
+    let dir = scratch("fifo");
+    let fifo = dir.join("hw.toml");
+    mkfifo(&fifo);
+    let png = dir.join("x.png");
+    let base = [
+        "render",
+        "--dataset",
+        "phantom:sphere:8",
+        "-o",
+        png.to_str().unwrap(),
+    ];
+    let mut args = base.to_vec();
+    args.extend(["--model", "fixed", "--config", fifo.to_str().unwrap()]);
+    assert_refused(&args, &["hw.toml", "not a regular file"]);
+    let mut args = base.to_vec();
+    args.extend(["--model", "fixed", "--config", "/dev/zero"]);
+    assert_refused(&args, &["/dev/zero", "not a regular file"]);
+    let mut args = base.to_vec();
+    args.extend(["--tf", fifo.to_str().unwrap()]);
+    // A transfer-function argument that is no regular file is not taken for a file at all.
+    assert_refused(&args, &["hw.toml"]);
+
+    let data = dir.join("data");
+    std::fs::create_dir_all(&data).unwrap();
+    mkfifo(&data.join("x_4x4x4_uint8.raw"));
+    assert_refused(
+        &["info", "x", "--data-dir", data.to_str().unwrap()],
+        &["x_4x4x4_uint8.raw", "not a regular file"],
+    );
+    let experiment = dir.join("e.toml");
+    mkfifo(&experiment);
+    assert_refused(
+        &[
+            "sweep",
+            experiment.to_str().unwrap(),
+            "--out",
+            dir.join("o").to_str().unwrap(),
+        ],
+        &["e.toml", "not a regular file"],
+    );
+    assert!(!png.exists());
+}
+
+#[test]
+fn oversized_text_inputs_are_refused() {
+    let dir = scratch("big");
+    let big = dir.join("big.toml");
+    let mut text = String::from("# padding\n");
+    while text.len() <= (16 << 20) {
+        text.push_str(&"#".repeat(1023));
+        text.push('\n');
+    }
+    std::fs::write(&big, text).unwrap();
+    let png = dir.join("x.png");
+    assert_refused(
+        &[
+            "render",
+            "--dataset",
+            "phantom:sphere:8",
+            "--model",
+            "fixed",
+            "--config",
+            big.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+        ],
+        &["big.toml", "16 MiB"],
+    );
+}
+
+#[test]
+fn an_absurd_ideal_latency_is_refused() {
+    assert_refused(
+        &[
+            "sim",
+            "--dataset",
+            "phantom:sphere:8",
+            "--memory",
+            "ideal",
+            "--ideal-latency",
+            "18446744073709551615",
+        ],
+        &["ideal memory latency", "1..=1048576"],
+    );
+}
