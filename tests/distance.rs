@@ -1,0 +1,171 @@
+//! The distance volume as a leaping structure (docs/model.md, "The distance volume"): its
+//! configuration, experiment modes, the functional model (image bit-identical to no leaping,
+//! never more steps) and the cycle model (image and counts equal the functional model's; every
+//! step waits for its distance word from memory).
+
+mod common;
+
+use common::{assert_leap_matches, camera, render_fixed, views};
+use vizsim::camera::{Projection, View};
+use vizsim::config::{HardwareConfig, LeapStructure};
+use vizsim::experiment::spec::Mode;
+use vizsim::functional::renderer::Leaping;
+use vizsim::occupancy::OccupancyKind;
+use vizsim::render::RenderSettings;
+use vizsim::transfer::{self, TransferFunction};
+use vizsim::volume::phantom::{generate, PhantomKind, PhantomSpec};
+use vizsim::volume::{dataset, Volume};
+
+fn ball_tf() -> TransferFunction {
+    common::tf(&[
+        (0.0, [0.0; 4]),
+        (60.0, [0.0; 4]),
+        (90.0, [0.2, 0.5, 1.0, 0.3]),
+        (200.0, [1.0, 0.8, 0.2, 0.9]),
+    ])
+}
+
+fn phantom(kind: PhantomKind, size: usize) -> Volume {
+    generate(&PhantomSpec {
+        size,
+        ..PhantomSpec::default_for(kind)
+    })
+}
+
+fn distance_leapings() -> Vec<Leaping> {
+    let mut out = Vec::new();
+    for bits in [4, 8] {
+        for kind in [OccupancyKind::Zero, OccupancyKind::Class] {
+            out.push(Leaping::Distance { bits, kind });
+        }
+    }
+    out
+}
+
+/// Every view of `views()`, ERT on and off, 4 and 8 bits, '0' and class visibility, both skip
+/// policies (inside `assert_leap_matches`).
+fn assert_distance_leaping_is_invisible(volume: &Volume, tf: &TransferFunction, size: u32) {
+    for (view, projection) in views() {
+        let cam = camera(volume, view, projection, size);
+        for ert in [Some(0.95), None] {
+            let settings = RenderSettings {
+                ert_threshold: ert,
+                ..Default::default()
+            };
+            let plain = render_fixed(volume, tf, &cam, &settings, Leaping::None);
+            for leaping in distance_leapings() {
+                let what = format!("{} {view:?} {projection:?} ert {ert:?}", volume.name);
+                assert_leap_matches(volume, tf, &cam, &settings, &plain, leaping, &what);
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------- configuration and modes
+
+#[test]
+fn the_default_configuration_serialises_nothing_new() {
+    let config = HardwareConfig::default_config();
+    assert_eq!(config.occupancy.structure, LeapStructure::Map);
+    assert_eq!(config.occupancy.distance_bits, 8);
+    let text = toml::to_string(&config).unwrap();
+    assert!(!text.contains("structure"), "{text}");
+    assert!(!text.contains("distance_bits"), "{text}");
+    assert_eq!(Leaping::from_config(&config), Leaping::None);
+}
+
+#[test]
+fn the_structure_and_bits_are_configured_and_validated() {
+    let set = |overrides: &[&str]| {
+        let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+        HardwareConfig::load(None, &o)
+    };
+    let c = set(&["occupancy.structure=\"distance\"", "occupancy.distance_bits=4"]).unwrap();
+    assert_eq!(
+        Leaping::from_config(&c),
+        Leaping::Distance {
+            bits: 4,
+            kind: OccupancyKind::Class
+        }
+    );
+    let text = toml::to_string(&c).unwrap();
+    assert!(text.contains("structure = \"distance\"") && text.contains("distance_bits = 4"));
+    let err = set(&["occupancy.distance_bits=6"]).unwrap_err().to_string();
+    assert!(
+        err.contains("occupancy.distance_bits") && err.contains("[4, 8]"),
+        "{err}"
+    );
+    let err = set(&["occupancy.structure=\"octree\""]).unwrap_err().to_string();
+    assert!(
+        err.contains("structure") && err.contains("map") && err.contains("distance"),
+        "{err}"
+    );
+    let err = set(&["occupancy.structure=distance", "occupancy.hierarchy=true"])
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("occupancy.hierarchy"), "{err}");
+}
+
+#[test]
+fn distance_modes_parse_and_print() {
+    let m = Mode::parse("ert+distance8").unwrap();
+    assert!(m.ert && m.distance_bits == 8 && m.subcube == 0);
+    assert_eq!(m.name(), "ert+distance8");
+    assert_eq!(Mode::parse("distance4").unwrap().name(), "distance4");
+    assert!(Mode::parse("distance6").unwrap_err().contains("[4, 8]"));
+    assert!(Mode::parse("distancex").is_err());
+    assert!(Mode::parse("leap8+distance8").is_err());
+    assert!(Mode::parse("distance8+hier").is_err());
+    // Modes without a distance volume serialise as before.
+    let json = serde_json::to_string(&Mode::parse("ert+leap8").unwrap()).unwrap();
+    assert!(!json.contains("distance"), "{json}");
+}
+
+// ---------------------------------------------------------------- functional model
+
+#[test]
+fn distance_leaping_is_invisible_on_a_ball() {
+    assert_distance_leaping_is_invisible(&common::ball(40), &ball_tf(), 32);
+}
+
+#[test]
+fn distance_leaping_is_invisible_on_phantoms() {
+    for kind in [PhantomKind::Shells, PhantomKind::Jet, PhantomKind::Metaballs] {
+        let volume = phantom(kind, 48);
+        let tf = transfer::resolve("class", &volume.name).unwrap_or_else(|_| ball_tf());
+        assert_distance_leaping_is_invisible(&volume, &tf, 32);
+    }
+}
+
+#[test]
+fn distance_leaping_leaps_and_eight_bits_leap_further() {
+    let volume = common::ball(48);
+    let tf = ball_tf();
+    let cam = camera(&volume, View::Orbit { k: 7, n: 72 }, Projection::Ortho, 32);
+    let settings = RenderSettings::default();
+    let steps = |leaping| render_fixed(&volume, &tf, &cam, &settings, leaping).stats().steps();
+    let plain = steps(Leaping::None);
+    let four = steps(Leaping::Distance {
+        bits: 4,
+        kind: OccupancyKind::Class,
+    });
+    let eight = steps(Leaping::Distance {
+        bits: 8,
+        kind: OccupancyKind::Class,
+    });
+    assert!(four < plain && eight <= four, "{plain} {four} {eight}");
+}
+
+#[test]
+fn distance_leaping_is_invisible_on_fuel_and_neghip() {
+    let Some(dir) = common::data_dir() else {
+        return;
+    };
+    for name in ["fuel", "neghip"] {
+        let volume = dataset::load(name, Some(&dir)).unwrap();
+        for kind in ["zero", "class"] {
+            let tf = transfer::resolve(kind, name).unwrap();
+            assert_distance_leaping_is_invisible(&volume, &tf, 48);
+        }
+    }
+}
