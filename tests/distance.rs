@@ -169,3 +169,170 @@ fn distance_leaping_is_invisible_on_fuel_and_neghip() {
         }
     }
 }
+
+// ---------------------------------------------------------------- cycle model
+
+mod cycle {
+    use super::*;
+    use vizsim::arch::pipeline::{simulate, CycleResult};
+    use vizsim::arch::sdram_module::SdramMemory;
+    use vizsim::arch::voxel_memory::{IdealMemory, VoxelMemory};
+    use vizsim::config::SkipPolicy;
+    use vizsim::functional::renderer::FixedRenderer;
+
+    fn config() -> HardwareConfig {
+        let mut c = HardwareConfig::default_config();
+        c.occupancy.sram_bits = 1 << 24;
+        c
+    }
+
+    fn run<M: VoxelMemory>(
+        renderer: &FixedRenderer,
+        cam: &vizsim::camera::Camera,
+        config: &HardwareConfig,
+        memory: &mut M,
+    ) -> CycleResult {
+        simulate(
+            renderer,
+            cam,
+            &renderer.skipper(),
+            memory,
+            config,
+            true,
+            None,
+        )
+        .unwrap()
+    }
+
+    /// Image, composited samples and (ERT off) samples, leaps and per-ray records equal the
+    /// functional model's; one distance read per step (ERT off), at least one with ERT.
+    fn check(volume: &Volume, tf: &TransferFunction, size: u32, sdram: bool) {
+        for (view, projection) in views() {
+            let cam = camera(volume, view, projection, size);
+            for ert in [Some(0.95), None] {
+                let settings = RenderSettings {
+                    ert_threshold: ert,
+                    ..Default::default()
+                };
+                for leaping in distance_leapings() {
+                    for policy in [SkipPolicy::LeapOnly, SkipPolicy::SampleThenLeap] {
+                        let mut config = config();
+                        config.skip.policy = policy;
+                        let renderer =
+                            FixedRenderer::new(volume, tf, &settings, &config, leaping).unwrap();
+                        let functional = renderer.render(&cam);
+                        let cycle = if sdram {
+                            config
+                                .memory
+                                .check_covers_with(volume.dims, true, "test")
+                                .unwrap();
+                            let mut memory = SdramMemory::new(
+                                &config.memory,
+                                &config.sdram,
+                                volume.dims,
+                                config.clock.frequency_mhz,
+                            );
+                            let c = run(&renderer, &cam, &config, &mut memory);
+                            let reads = memory.stats_json()["reads"].as_u64().unwrap();
+                            // replicated4: four words per sample, one per distance read.
+                            assert_eq!(reads, 4 * c.stats.samples + c.stats.distance_reads);
+                            c
+                        } else {
+                            run(&renderer, &cam, &config, &mut IdealMemory::new(5))
+                        };
+                        let what =
+                            format!("{view:?} {projection:?} ert {ert:?} {leaping:?} {policy:?}");
+                        assert!(
+                            cycle.frame.pixels == functional.pixels,
+                            "image differs: {what}"
+                        );
+                        let f = functional.stats();
+                        let s = &cycle.stats;
+                        assert_eq!(s.composited, f.samples, "{what}");
+                        assert_eq!(s.rays_terminated_early, f.rays_terminated_early, "{what}");
+                        assert!(s.distance_reads >= s.steps, "{what}");
+                        if ert.is_none() {
+                            assert_eq!(
+                                (s.steps, s.samples, s.leaps, s.leap_samples),
+                                (f.steps(), f.samples, f.leaps, f.leap_samples),
+                                "{what}"
+                            );
+                            assert_eq!(cycle.frame.rays, functional.rays, "{what}");
+                            assert_eq!(s.distance_reads, s.steps, "{what}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn cycle_model_equals_functional_with_a_distance_volume_ideal_memory() {
+        check(&common::ball(40), &ball_tf(), 24, false);
+    }
+
+    #[test]
+    fn cycle_model_equals_functional_with_a_distance_volume_sdram() {
+        check(&common::ball(40), &ball_tf(), 24, true);
+        let shells = phantom(PhantomKind::Shells, 48);
+        let tf = transfer::resolve("class", &shells.name).unwrap_or_else(|_| ball_tf());
+        check(&shells, &tf, 24, true);
+    }
+
+    /// One ray in flight: every step waits for the skip unit and for its distance word, so a
+    /// step costs at least skip.latency + the memory latency; the map costs skip.latency.
+    #[test]
+    fn each_step_waits_for_its_distance_word() {
+        let volume = common::ball(32);
+        let tf = ball_tf();
+        let cam = camera(&volume, View::Front, Projection::Ortho, 8);
+        let settings = RenderSettings {
+            ert_threshold: None,
+            ..Default::default()
+        };
+        let mut config = config();
+        config.ray_queue.rays = 1;
+        let latency = 20;
+        let leaping = Leaping::Distance {
+            bits: 8,
+            kind: OccupancyKind::Class,
+        };
+        let renderer = FixedRenderer::new(&volume, &tf, &settings, &config, leaping).unwrap();
+        let c = run(&renderer, &cam, &config, &mut IdealMemory::new(latency));
+        let per_step = config.skip.latency as u64 + latency;
+        assert!(c.stats.steps > 0);
+        assert!(
+            c.stats.cycles >= c.stats.steps * per_step,
+            "{} cycles for {} steps",
+            c.stats.cycles,
+            c.stats.steps
+        );
+        assert!(c.stats.stall_cycles.distance_word > 0);
+        // The same frame with the map: no distance reads, no such stalls, fewer cycles.
+        let map = Leaping::Occupancy {
+            subcube: 4,
+            hierarchy: false,
+            kind: OccupancyKind::Class,
+        };
+        let renderer = FixedRenderer::new(&volume, &tf, &settings, &config, map).unwrap();
+        let m = run(&renderer, &cam, &config, &mut IdealMemory::new(latency));
+        assert_eq!(m.stats.distance_reads, 0);
+        assert_eq!(m.stats.stall_cycles.distance_word, 0);
+    }
+
+    #[test]
+    fn the_distance_array_needs_rows_after_the_volume() {
+        let mut memory = HardwareConfig::default_config().memory;
+        let dims = [64, 64, 64];
+        let rows = memory.rows_needed(dims) as u32;
+        memory.rows = rows;
+        memory.check_covers(dims, "test").unwrap();
+        let err = memory
+            .check_covers_with(dims, true, "test")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("memory.rows") && err.contains("distance"), "{err}");
+        memory.rows = 2 * rows;
+        memory.check_covers_with(dims, true, "test").unwrap();
+    }
+}

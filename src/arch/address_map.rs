@@ -152,10 +152,10 @@ impl MemoryConfig {
         }
     }
 
-    /// An error when the volume does not fit the modules' rows × banks × columns.
-    pub fn check_covers(&self, dims: [usize; 3], source: &str) -> Result<()> {
+    /// Rows per bank the volume occupies (rows 0..this in every bank and module).
+    pub fn rows_needed(&self, dims: [usize; 3]) -> u64 {
         let local = self.local_dims(dims);
-        let rows_needed = match self.mapping {
+        match self.mapping {
             Mapping::Linear4 => {
                 let words = local.iter().product::<usize>() as u64;
                 words
@@ -170,13 +170,25 @@ impl MemoryConfig {
                     .map(|&d| d as u64)
                     .product()
             }
-        };
+        }
+    }
+
+    /// An error when the volume does not fit the modules' rows × banks × columns.
+    pub fn check_covers(&self, dims: [usize; 3], source: &str) -> Result<()> {
+        self.check_covers_with(dims, false, source)
+    }
+
+    /// `check_covers`, with `distance`: the volume and its distance array after it (the same
+    /// layout again, in the rows after the volume's: `AddressMap::distance_word`).
+    pub fn check_covers_with(&self, dims: [usize; 3], distance: bool, source: &str) -> Result<()> {
+        let rows_needed = self.rows_needed(dims) * if distance { 2 } else { 1 };
         if rows_needed > self.rows as u64 {
             return Err(Error::config(
                 source,
                 "memory.rows",
                 format!(
-                    "a {dims:?} volume needs {rows_needed} rows per bank with mapping {:?}, the modules have {}",
+                    "a {dims:?} volume{} needs {rows_needed} rows per bank with mapping {:?}, the modules have {}",
+                    if distance { " and its distance array" } else { "" },
                     self.mapping, self.rows
                 ),
             ));
@@ -207,6 +219,8 @@ pub struct AddressMap {
     /// are disjoint, row and column are linear in the block coordinates), tabulated per local
     /// coordinate so a word costs three lookups. Empty for the linear layout.
     parts: [Vec<AxisPart>; 3],
+    /// Rows the volume occupies per bank: the distance array starts at this row.
+    distance_row: u32,
 }
 
 #[derive(Clone, Copy, Debug, Default)]
@@ -228,6 +242,7 @@ impl AddressMap {
             bank_shifts,
             row_grid,
             parts: Default::default(),
+            distance_row: config.rows_needed(dims) as u32,
         };
         if config.mapping != Mapping::Linear4 {
             // One past the local extent: a neighbourhood's upper corner may lie there.
@@ -290,6 +305,22 @@ impl AddressMap {
                 }
             }
         }
+    }
+
+    /// The word holding the distance of voxel `voxel`. The distance array mirrors the volume's
+    /// layout (one distance per word, on the module and at the bank and column of the voxel's
+    /// own word, the word the sample's lower corner reads) in the rows after the volume's:
+    /// row = the voxel word's row + `rows_needed`. Simple, not dense: 8 bits of each word used.
+    #[inline]
+    pub fn distance_word(&self, voxel: [usize; 3]) -> WordAddress {
+        let (x, y, z) = (voxel[0], voxel[1], voxel[2]);
+        let (module, local) = match self.config.mapping {
+            Mapping::Interleaved8 => ((x & 1) + 2 * (y & 1) + 4 * (z & 1), [x >> 1, y >> 1, z >> 1]),
+            _ => ((x & 1) + 2 * (y & 1), [x >> 1, y >> 1, z]),
+        };
+        let mut word = self.word(module as u32, local);
+        word.row += self.distance_row;
+        word
     }
 
     #[inline]
