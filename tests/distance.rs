@@ -80,7 +80,11 @@ fn the_structure_and_bits_are_configured_and_validated() {
         let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
         HardwareConfig::load(None, &o)
     };
-    let c = set(&["occupancy.structure=\"distance\"", "occupancy.distance_bits=4"]).unwrap();
+    let c = set(&[
+        "occupancy.structure=\"distance\"",
+        "occupancy.distance_bits=4",
+    ])
+    .unwrap();
     assert_eq!(
         Leaping::from_config(&c),
         Leaping::Distance {
@@ -95,7 +99,9 @@ fn the_structure_and_bits_are_configured_and_validated() {
         err.contains("occupancy.distance_bits") && err.contains("[4, 8]"),
         "{err}"
     );
-    let err = set(&["occupancy.structure=\"octree\""]).unwrap_err().to_string();
+    let err = set(&["occupancy.structure=\"octree\""])
+        .unwrap_err()
+        .to_string();
     assert!(
         err.contains("structure") && err.contains("map") && err.contains("distance"),
         "{err}"
@@ -130,7 +136,11 @@ fn distance_leaping_is_invisible_on_a_ball() {
 
 #[test]
 fn distance_leaping_is_invisible_on_phantoms() {
-    for kind in [PhantomKind::Shells, PhantomKind::Jet, PhantomKind::Metaballs] {
+    for kind in [
+        PhantomKind::Shells,
+        PhantomKind::Jet,
+        PhantomKind::Metaballs,
+    ] {
         let volume = phantom(kind, 48);
         let tf = transfer::resolve("class", &volume.name).unwrap_or_else(|_| ball_tf());
         assert_distance_leaping_is_invisible(&volume, &tf, 32);
@@ -143,7 +153,11 @@ fn distance_leaping_leaps_and_eight_bits_leap_further() {
     let tf = ball_tf();
     let cam = camera(&volume, View::Orbit { k: 7, n: 72 }, Projection::Ortho, 32);
     let settings = RenderSettings::default();
-    let steps = |leaping| render_fixed(&volume, &tf, &cam, &settings, leaping).stats().steps();
+    let steps = |leaping| {
+        render_fixed(&volume, &tf, &cam, &settings, leaping)
+            .stats()
+            .steps()
+    };
     let plain = steps(Leaping::None);
     let four = steps(Leaping::Distance {
         bits: 4,
@@ -331,8 +345,153 @@ mod cycle {
             .check_covers_with(dims, true, "test")
             .unwrap_err()
             .to_string();
-        assert!(err.contains("memory.rows") && err.contains("distance"), "{err}");
+        assert!(
+            err.contains("memory.rows") && err.contains("distance"),
+            "{err}"
+        );
         memory.rows = 2 * rows;
         memory.check_covers_with(dims, true, "test").unwrap();
+    }
+}
+
+// ---------------------------------------------------------------- experiments and the run path
+
+#[test]
+fn distance_modes_expand_and_run_through_the_run_path() {
+    use vizsim::experiment::spec::expand;
+    use vizsim::run::{execute, prepare, Model, Probes};
+    let text = |modes: &str| {
+        format!(
+            r#"
+name = "distance"
+datasets = ["phantom:shells:24"]
+tf = ["class"]
+modes = [{modes}]
+models = ["step", "cycle"]
+[frames]
+orbit = 72
+select = [5]
+size = "16x16"
+"#
+        )
+    };
+    let before = expand(&text("\"none\", \"ert+leap8\""), "before", None).unwrap();
+    let e = expand(
+        &text("\"none\", \"ert+leap8\", \"ert+distance8\", \"distance4\""),
+        "after",
+        None,
+    )
+    .unwrap();
+    assert_eq!(e.runs.len(), 8);
+    // Runs without a distance volume keep their keys.
+    for r in &before.runs {
+        assert!(e.runs.iter().any(|s| s.key == r.key), "{}", r.mode.name());
+    }
+    let keys: std::collections::HashSet<_> = e.runs.iter().map(|r| &r.key).collect();
+    assert_eq!(keys.len(), 8);
+    let mut steps = std::collections::BTreeMap::new();
+    for r in &e.runs {
+        let s = &r.run.hardware.occupancy;
+        assert_eq!(
+            s.structure == LeapStructure::Distance,
+            r.mode.distance_bits > 0,
+            "{}",
+            r.mode.name()
+        );
+        if r.mode.distance_bits > 0 {
+            assert_eq!(s.distance_bits, r.mode.distance_bits);
+            assert_eq!(s.subcube, 0);
+        }
+        let volume = &e.volumes[&r.run.dataset];
+        let prepared = prepare(&r.run, volume).unwrap();
+        let report = execute(&r.run, &prepared, Probes::default()).unwrap();
+        steps.insert(
+            (r.mode.name(), r.run.model == Model::Cycle),
+            report.measurements.steps,
+        );
+    }
+    for cycle in [false, true] {
+        let none = steps[&("none".to_string(), cycle)];
+        assert!(steps[&("distance4".to_string(), cycle)] < none, "{steps:?}");
+        assert!(
+            steps[&("ert+distance8".to_string(), cycle)] < none,
+            "{steps:?}"
+        );
+    }
+    // ERT off: the cycle model takes the functional model's steps.
+    assert_eq!(
+        steps[&("distance4".to_string(), false)],
+        steps[&("distance4".to_string(), true)]
+    );
+}
+
+/// The cycle model with SDRAM against the functional model on fuel and neghip (a distance
+/// volume each, ERT on and off).
+#[test]
+fn cycle_model_equals_functional_with_a_distance_volume_on_real_data() {
+    use vizsim::arch::pipeline::simulate;
+    use vizsim::arch::sdram_module::SdramMemory;
+    use vizsim::functional::renderer::FixedRenderer;
+    let Some(dir) = common::data_dir() else {
+        return;
+    };
+    let config = HardwareConfig::default_config();
+    for (name, view, projection, ert, bits) in [
+        (
+            "fuel",
+            View::Orbit { k: 7, n: 72 },
+            Projection::Ortho,
+            None,
+            8,
+        ),
+        (
+            "fuel",
+            View::Orbit { k: 50, n: 72 },
+            Projection::Persp,
+            Some(0.95),
+            4,
+        ),
+        ("neghip", View::Front, Projection::Ortho, Some(0.95), 8),
+    ] {
+        let volume = dataset::load(name, Some(&dir)).unwrap();
+        let tf = transfer::resolve("class", name).unwrap();
+        let cam = camera(&volume, view, projection, 32);
+        let settings = RenderSettings {
+            ert_threshold: ert,
+            ..Default::default()
+        };
+        let leaping = Leaping::Distance {
+            bits,
+            kind: OccupancyKind::Class,
+        };
+        let renderer = FixedRenderer::new(&volume, &tf, &settings, &config, leaping).unwrap();
+        let functional = renderer.render(&cam);
+        let mut memory = SdramMemory::new(
+            &config.memory,
+            &config.sdram,
+            volume.dims,
+            config.clock.frequency_mhz,
+        );
+        let cycle = simulate(
+            &renderer,
+            &cam,
+            &renderer.skipper(),
+            &mut memory,
+            &config,
+            true,
+            None,
+        )
+        .unwrap();
+        assert!(cycle.frame.pixels == functional.pixels, "{name} {view:?}");
+        let (f, s) = (functional.stats(), &cycle.stats);
+        assert_eq!(s.composited, f.samples, "{name} {view:?}");
+        if ert.is_none() {
+            assert_eq!(
+                (s.samples, s.leaps),
+                (f.samples, f.leaps),
+                "{name} {view:?}"
+            );
+            assert_eq!(s.distance_reads, s.steps, "{name} {view:?}");
+        }
     }
 }

@@ -315,7 +315,10 @@ impl AddressMap {
     pub fn distance_word(&self, voxel: [usize; 3]) -> WordAddress {
         let (x, y, z) = (voxel[0], voxel[1], voxel[2]);
         let (module, local) = match self.config.mapping {
-            Mapping::Interleaved8 => ((x & 1) + 2 * (y & 1) + 4 * (z & 1), [x >> 1, y >> 1, z >> 1]),
+            Mapping::Interleaved8 => (
+                (x & 1) + 2 * (y & 1) + 4 * (z & 1),
+                [x >> 1, y >> 1, z >> 1],
+            ),
             _ => ((x & 1) + 2 * (y & 1), [x >> 1, y >> 1, z]),
         };
         let mut word = self.word(module as u32, local);

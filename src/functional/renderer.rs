@@ -29,7 +29,10 @@ pub enum Leaping {
         kind: OccupancyKind,
     },
     /// The distance volume (`occupancy.structure = "distance"`), `bits` per stored distance.
-    Distance { bits: u32, kind: OccupancyKind },
+    Distance {
+        bits: u32,
+        kind: OccupancyKind,
+    },
 }
 
 impl Leaping {
@@ -114,12 +117,12 @@ impl<'a> FixedRenderer<'a> {
         // Visible cells as the occupancy map's kinds define them: '0' any non-zero voxel,
         // class the classification table's test.
         let distance = match leaping {
-            Leaping::Distance { bits, kind } => Some(distance_volume(volume, bits, |lo, hi| {
-                match kind {
+            Leaping::Distance { bits, kind } => {
+                Some(distance_volume(volume, bits, |lo, hi| match kind {
                     OccupancyKind::Zero => hi > 0,
                     OccupancyKind::Class => table.any_visible(lo, hi),
-                }
-            })?),
+                })?)
+            }
             _ => None,
         };
         let gradients = settings
