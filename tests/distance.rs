@@ -352,6 +352,72 @@ mod cycle {
         memory.rows = 2 * rows;
         memory.check_covers_with(dims, true, "test").unwrap();
     }
+
+    /// The distance word of a voxel: the module of the voxel's own word, the rows after the
+    /// volume's, the same bank or (other-bank) every bank bit flipped; the default placement is
+    /// not serialised.
+    #[test]
+    fn distance_words_are_placed_as_configured() {
+        use vizsim::arch::address_map::{AddressMap, DistancePlacement};
+        let mut config = HardwareConfig::default_config().memory;
+        assert!(!toml::to_string(&config)
+            .unwrap()
+            .contains("distance_placement"));
+        let dims = [40, 36, 30];
+        let rows = config.rows_needed(dims) as u32;
+        let same = AddressMap::new(&config, dims);
+        config.distance_placement = DistancePlacement::OtherBank;
+        assert!(toml::to_string(&config)
+            .unwrap()
+            .contains("distance_placement = \"other-bank\""));
+        let other = AddressMap::new(&config, dims);
+        for voxel in [[0, 0, 0], [1, 0, 0], [17, 9, 28], [38, 34, 28]] {
+            let (words, _) = same.sample_words(voxel);
+            let own = words
+                .iter()
+                .find(|w| w.module == same.distance_word(voxel).module)
+                .copied()
+                .unwrap();
+            let (a, b) = (same.distance_word(voxel), other.distance_word(voxel));
+            assert_eq!(
+                (a.bank, a.row, a.column),
+                (own.bank, own.row + rows, own.column)
+            );
+            assert_eq!(
+                (b.module, b.bank, b.row, b.column),
+                (a.module, a.bank ^ (config.banks - 1), a.row, a.column)
+            );
+        }
+    }
+
+    #[test]
+    fn other_bank_placement_keeps_the_image_and_counts() {
+        let volume = common::ball(40);
+        let tf = ball_tf();
+        let cam = camera(&volume, View::Orbit { k: 7, n: 72 }, Projection::Ortho, 24);
+        let settings = RenderSettings {
+            ert_threshold: None,
+            ..Default::default()
+        };
+        let mut config = config();
+        config.memory.distance_placement = vizsim::arch::address_map::DistancePlacement::OtherBank;
+        let leaping = Leaping::Distance {
+            bits: 8,
+            kind: OccupancyKind::Class,
+        };
+        let renderer = FixedRenderer::new(&volume, &tf, &settings, &config, leaping).unwrap();
+        let functional = renderer.render(&cam);
+        let mut memory = SdramMemory::new(
+            &config.memory,
+            &config.sdram,
+            volume.dims,
+            config.clock.frequency_mhz,
+        );
+        let c = run(&renderer, &cam, &config, &mut memory);
+        assert!(c.frame.pixels == functional.pixels);
+        assert_eq!(c.frame.rays, functional.rays);
+        assert_eq!(c.stats.distance_reads, c.stats.steps);
+    }
 }
 
 // ---------------------------------------------------------------- experiments and the run path

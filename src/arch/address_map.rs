@@ -61,6 +61,29 @@ pub struct MemoryConfig {
     /// How often the oldest request may be overtaken before it must be served.
     pub max_bypass: u32,
     pub row_policy: RowPolicy,
+    /// Where the distance volume's words lie (`occupancy.structure = "distance"`): in the rows
+    /// after the volume's, in the bank of the voxel's own word ("same-bank") or in the bank
+    /// with every bank bit flipped ("other-bank"). Written out only when not the default.
+    #[serde(default, skip_serializing_if = "DistancePlacement::is_same_bank")]
+    pub distance_placement: DistancePlacement,
+}
+
+/// The bank of a distance word relative to its voxel's word (`AddressMap::distance_word`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DistancePlacement {
+    /// The voxel word's bank: a step's distance read and its sample's read share a bank (and
+    /// conflict in its row buffer).
+    #[default]
+    SameBank,
+    /// The voxel word's bank XOR (banks − 1): the bank of the diagonal neighbour block.
+    OtherBank,
+}
+
+impl DistancePlacement {
+    pub fn is_same_bank(&self) -> bool {
+        *self == DistancePlacement::SameBank
+    }
 }
 
 impl MemoryConfig {
@@ -221,6 +244,8 @@ pub struct AddressMap {
     parts: [Vec<AxisPart>; 3],
     /// Rows the volume occupies per bank: the distance array starts at this row.
     distance_row: u32,
+    /// XOR applied to a distance word's bank (`memory.distance_placement`).
+    distance_bank_xor: u32,
 }
 
 #[derive(Clone, Copy, Debug, Default)]
@@ -243,6 +268,10 @@ impl AddressMap {
             row_grid,
             parts: Default::default(),
             distance_row: config.rows_needed(dims) as u32,
+            distance_bank_xor: match config.distance_placement {
+                DistancePlacement::SameBank => 0,
+                DistancePlacement::OtherBank => config.banks - 1,
+            },
         };
         if config.mapping != Mapping::Linear4 {
             // One past the local extent: a neighbourhood's upper corner may lie there.
@@ -310,7 +339,9 @@ impl AddressMap {
     /// The word holding the distance of voxel `voxel`. The distance array mirrors the volume's
     /// layout (one distance per word, on the module and at the bank and column of the voxel's
     /// own word, the word the sample's lower corner reads) in the rows after the volume's:
-    /// row = the voxel word's row + `rows_needed`. Simple, not dense: 8 bits of each word used.
+    /// row = the voxel word's row + `rows_needed`; bank = the voxel word's bank, or with
+    /// `distance_placement = "other-bank"` that bank XOR (banks − 1). Simple, not dense: 8 bits
+    /// of each word used.
     #[inline]
     pub fn distance_word(&self, voxel: [usize; 3]) -> WordAddress {
         let (x, y, z) = (voxel[0], voxel[1], voxel[2]);
@@ -323,6 +354,7 @@ impl AddressMap {
         };
         let mut word = self.word(module as u32, local);
         word.row += self.distance_row;
+        word.bank ^= self.distance_bank_xor;
         word
     }
 
