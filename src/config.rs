@@ -125,6 +125,46 @@ pub struct OccupancyConfig {
     pub kind: OccupancyKind,
     /// On-chip SRAM capacity for the map, in bits (XCV1000 block RAM: 131072).
     pub sram_bits: u64,
+    /// The leaping structure: "map" (the occupancy map above, on-chip SRAM) or "distance"
+    /// (a distance volume in SDRAM beside the volume; `subcube` is then not used). Written out
+    /// only when not the default "map", so existing run keys are unchanged.
+    #[serde(default, skip_serializing_if = "LeapStructure::is_map")]
+    pub structure: LeapStructure,
+    /// Bits of a stored distance with `structure = "distance"`: 4 or 8. Written out only when
+    /// not the default 8.
+    #[serde(
+        default = "default_distance_bits",
+        skip_serializing_if = "is_default_distance_bits"
+    )]
+    pub distance_bits: u32,
+}
+
+/// Which acceleration structure leaps (docs/model.md, "The distance volume").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LeapStructure {
+    /// The occupancy map of sub-cubes in on-chip SRAM (`occupancy.subcube`, 0 = no leaping).
+    #[default]
+    Map,
+    /// The distance volume: one distance word per voxel in SDRAM, read at every step.
+    Distance,
+}
+
+impl LeapStructure {
+    pub fn is_map(&self) -> bool {
+        *self == LeapStructure::Map
+    }
+}
+
+/// Allowed `occupancy.distance_bits`.
+pub const DISTANCE_BITS_ALLOWED: [u32; 2] = [4, 8];
+
+fn default_distance_bits() -> u32 {
+    8
+}
+
+fn is_default_distance_bits(bits: &u32) -> bool {
+    *bits == default_distance_bits()
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -330,6 +370,24 @@ impl HardwareConfig {
             ));
         }
         range("occupancy.sram_bits", o.sram_bits, 1, 1 << 32)?;
+        if !DISTANCE_BITS_ALLOWED.contains(&o.distance_bits) {
+            return Err(Error::config(
+                source,
+                "occupancy.distance_bits",
+                format!(
+                    "{} is not allowed; allowed {DISTANCE_BITS_ALLOWED:?}",
+                    o.distance_bits
+                ),
+            ));
+        }
+        if o.structure == LeapStructure::Distance && o.hierarchy {
+            return Err(Error::config(
+                source,
+                "occupancy.hierarchy",
+                "true needs occupancy.structure = \"map\"; the distance volume has no hierarchy"
+                    .to_string(),
+            ));
+        }
         range(
             "interpolation.weight_bits",
             self.interpolation.weight_bits as u64,

@@ -196,9 +196,12 @@ pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<
         Model::Float => Renderer::Float(FloatRenderer::new(volume, &tf, &settings)?),
         Model::Step | Model::Cycle => {
             if run.model == Model::Cycle && run.memory == Memory::Sdram {
-                run.hardware
-                    .memory
-                    .check_covers(volume.dims, "hardware configuration")?;
+                let distance = matches!(run.leaping(), Leaping::Distance { .. });
+                run.hardware.memory.check_covers_with(
+                    volume.dims,
+                    distance,
+                    "hardware configuration",
+                )?;
             }
             Renderer::Fixed(Box::new(FixedRenderer::new(
                 volume,

@@ -61,6 +61,29 @@ pub struct MemoryConfig {
     /// How often the oldest request may be overtaken before it must be served.
     pub max_bypass: u32,
     pub row_policy: RowPolicy,
+    /// Where the distance volume's words lie (`occupancy.structure = "distance"`): in the rows
+    /// after the volume's, in the bank of the voxel's own word ("same-bank") or in the bank
+    /// with every bank bit flipped ("other-bank"). Written out only when not the default.
+    #[serde(default, skip_serializing_if = "DistancePlacement::is_same_bank")]
+    pub distance_placement: DistancePlacement,
+}
+
+/// The bank of a distance word relative to its voxel's word (`AddressMap::distance_word`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DistancePlacement {
+    /// The voxel word's bank: a step's distance read and its sample's read share a bank (and
+    /// conflict in its row buffer).
+    #[default]
+    SameBank,
+    /// The voxel word's bank XOR (banks − 1): the bank of the diagonal neighbour block.
+    OtherBank,
+}
+
+impl DistancePlacement {
+    pub fn is_same_bank(&self) -> bool {
+        *self == DistancePlacement::SameBank
+    }
 }
 
 impl MemoryConfig {
@@ -152,10 +175,10 @@ impl MemoryConfig {
         }
     }
 
-    /// An error when the volume does not fit the modules' rows × banks × columns.
-    pub fn check_covers(&self, dims: [usize; 3], source: &str) -> Result<()> {
+    /// Rows per bank the volume occupies (rows 0..this in every bank and module).
+    pub fn rows_needed(&self, dims: [usize; 3]) -> u64 {
         let local = self.local_dims(dims);
-        let rows_needed = match self.mapping {
+        match self.mapping {
             Mapping::Linear4 => {
                 let words = local.iter().product::<usize>() as u64;
                 words
@@ -170,13 +193,25 @@ impl MemoryConfig {
                     .map(|&d| d as u64)
                     .product()
             }
-        };
+        }
+    }
+
+    /// An error when the volume does not fit the modules' rows × banks × columns.
+    pub fn check_covers(&self, dims: [usize; 3], source: &str) -> Result<()> {
+        self.check_covers_with(dims, false, source)
+    }
+
+    /// `check_covers`, with `distance`: the volume and its distance array after it (the same
+    /// layout again, in the rows after the volume's: `AddressMap::distance_word`).
+    pub fn check_covers_with(&self, dims: [usize; 3], distance: bool, source: &str) -> Result<()> {
+        let rows_needed = self.rows_needed(dims) * if distance { 2 } else { 1 };
         if rows_needed > self.rows as u64 {
             return Err(Error::config(
                 source,
                 "memory.rows",
                 format!(
-                    "a {dims:?} volume needs {rows_needed} rows per bank with mapping {:?}, the modules have {}",
+                    "a {dims:?} volume{} needs {rows_needed} rows per bank with mapping {:?}, the modules have {}",
+                    if distance { " and its distance array" } else { "" },
                     self.mapping, self.rows
                 ),
             ));
@@ -207,6 +242,10 @@ pub struct AddressMap {
     /// are disjoint, row and column are linear in the block coordinates), tabulated per local
     /// coordinate so a word costs three lookups. Empty for the linear layout.
     parts: [Vec<AxisPart>; 3],
+    /// Rows the volume occupies per bank: the distance array starts at this row.
+    distance_row: u32,
+    /// XOR applied to a distance word's bank (`memory.distance_placement`).
+    distance_bank_xor: u32,
 }
 
 #[derive(Clone, Copy, Debug, Default)]
@@ -228,6 +267,11 @@ impl AddressMap {
             bank_shifts,
             row_grid,
             parts: Default::default(),
+            distance_row: config.rows_needed(dims) as u32,
+            distance_bank_xor: match config.distance_placement {
+                DistancePlacement::SameBank => 0,
+                DistancePlacement::OtherBank => config.banks - 1,
+            },
         };
         if config.mapping != Mapping::Linear4 {
             // One past the local extent: a neighbourhood's upper corner may lie there.
@@ -290,6 +334,28 @@ impl AddressMap {
                 }
             }
         }
+    }
+
+    /// The word holding the distance of voxel `voxel`. The distance array mirrors the volume's
+    /// layout (one distance per word, on the module and at the bank and column of the voxel's
+    /// own word, the word the sample's lower corner reads) in the rows after the volume's:
+    /// row = the voxel word's row + `rows_needed`; bank = the voxel word's bank, or with
+    /// `distance_placement = "other-bank"` that bank XOR (banks − 1). Simple, not dense: 8 bits
+    /// of each word used.
+    #[inline]
+    pub fn distance_word(&self, voxel: [usize; 3]) -> WordAddress {
+        let (x, y, z) = (voxel[0], voxel[1], voxel[2]);
+        let (module, local) = match self.config.mapping {
+            Mapping::Interleaved8 => (
+                (x & 1) + 2 * (y & 1) + 4 * (z & 1),
+                [x >> 1, y >> 1, z >> 1],
+            ),
+            _ => ((x & 1) + 2 * (y & 1), [x >> 1, y >> 1, z]),
+        };
+        let mut word = self.word(module as u32, local);
+        word.row += self.distance_row;
+        word.bank ^= self.distance_bank_xor;
+        word
     }
 
     #[inline]

@@ -26,7 +26,7 @@ use super::compositing_buffer::CompositingBuffer;
 use super::ray_queue::{RayQueue, RaySlot};
 use super::skip_unit::{PositionUpdate, SkipUnit};
 use super::trace::{Probe, Waveform};
-use super::voxel_memory::{SampleRequest, VoxelMemory};
+use super::voxel_memory::{SampleRequest, VoxelMemory, WORD_TAG};
 use crate::camera::Camera;
 use crate::config::HardwareConfig;
 use crate::error::{Error, Result};
@@ -46,6 +46,14 @@ pub struct StallCycles {
     pub memory: u64,
     /// The compositing buffer had no free entry.
     pub compositing_buffer_full: u64,
+    /// Every ray in the queue is busy and at least one waits for its distance word from
+    /// memory (distance-volume leaping only; not written out when 0).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub distance_word: u64,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
@@ -60,6 +68,10 @@ pub struct CycleStats {
     pub leaps: u64,
     /// Samples followed by a leap (`skip.policy = "sample-then-leap"`); included in `samples`.
     pub leap_samples: u64,
+    /// One-word reads of the distance volume (one per position a ray reaches; distance-volume
+    /// leaping only; not written out when 0).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub distance_reads: u64,
     /// Samples composited (in ray order).
     pub composited: u64,
     /// Samples issued after their ray reached the ERT threshold, discarded at compositing.
@@ -186,6 +198,10 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
     let mut feedback: VecDeque<(u64, usize)> = VecDeque::new();
     let mut completed_tags = Vec::new();
     let mut leaving_candidates: Vec<usize> = Vec::new();
+    // Distance-volume leaping: (slot, voxel) whose distance word must be read before the ray
+    // at its current position may issue; the slot stays busy until the word is back.
+    let mut word_requests: VecDeque<(usize, [usize; 3])> = VecDeque::new();
+    let mut waiting_words = 0usize;
     let mut next_setup = 0usize;
     let mut retired = 0usize;
 
@@ -276,8 +292,18 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
             }
         }
         for &tag in &completed_tags {
-            buffer.arrive(tag as u32);
             moved = true;
+            if tag & WORD_TAG != 0 {
+                // A distance word is back: its ray may issue (or leave, if ERT came meanwhile).
+                let index = (tag & !WORD_TAG) as usize;
+                if let Some(slot) = queue.slot_mut(index) {
+                    slot.busy = false;
+                }
+                waiting_words -= 1;
+                leaving_candidates.push(index);
+                continue;
+            }
+            buffer.arrive(tag as u32);
         }
 
         // ERT feedback reaching the ray queue.
@@ -296,6 +322,14 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
                 slot.pos = update.pos;
                 slot.k = update.k;
                 slot.busy = false;
+                // With a structure in volume memory, the new position's word is read first.
+                if !slot.finished() {
+                    if let Some(voxel) = skipper.memory_word(slot.pos) {
+                        slot.busy = true;
+                        waiting_words += 1;
+                        word_requests.push_back((update.slot, voxel));
+                    }
+                }
                 leaving_candidates.push(update.slot);
             }
             moved = true;
@@ -319,6 +353,15 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
             }
         }
 
+        // Distance words: one read enters the memory per cycle, in request order.
+        if let Some(&(index, voxel)) = word_requests.front() {
+            if memory.try_push_word(WORD_TAG | index as u64, voxel, now) {
+                word_requests.pop_front();
+                stats.distance_reads += 1;
+                moved = true;
+            }
+        }
+
         // Issue: one step of one ready ray.
         let issued = issue(
             renderer,
@@ -330,6 +373,7 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
             &mut records,
             &mut stats,
             now,
+            waiting_words > 0,
         );
         moved |= issued.is_ok();
         let stall = issued.err();
@@ -364,6 +408,12 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
                 );
                 continue;
             }
+            // With a structure in volume memory, the first position's word is read first.
+            let word = skipper.memory_word(ray.start);
+            if let Some(voxel) = word {
+                waiting_words += 1;
+                word_requests.push_back((free, voxel));
+            }
             queue.admit(
                 free,
                 RaySlot {
@@ -371,7 +421,7 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
                     pos: ray.start,
                     ray,
                     k: 0,
-                    busy: false,
+                    busy: word.is_some(),
                     terminated: false,
                     admitted: now,
                     samples_issued: 0,
@@ -435,6 +485,7 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
                 Stall::SkipBusy => stats.stall_cycles.skip_unit_busy += span,
                 Stall::Memory => stats.stall_cycles.memory += span,
                 Stall::BufferFull => stats.stall_cycles.compositing_buffer_full += span,
+                Stall::DistanceWord => stats.stall_cycles.distance_word += span,
             }
         }
         stats.ray_queue_occupancy[queue.occupancy()] += span;
@@ -478,6 +529,7 @@ enum Stall {
     SkipBusy,
     Memory,
     BufferFull,
+    DistanceWord,
 }
 
 /// What the issue stage did in a cycle.
@@ -500,12 +552,17 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
     records: &mut [RayRecord],
     stats: &mut CycleStats,
     now: u64,
+    waiting_words: bool,
 ) -> std::result::Result<Issued, Stall> {
     if queue.occupancy() == 0 {
         return Err(Stall::RayQueueEmpty);
     }
     let Some(index) = queue.select(|_| true) else {
-        return Err(Stall::SkipBusy);
+        return Err(if waiting_words {
+            Stall::DistanceWord
+        } else {
+            Stall::SkipBusy
+        });
     };
     let slot = queue.slot_mut(index).expect("selected slot");
     let remaining = slot.ray.samples as u64 - slot.k;

@@ -19,7 +19,7 @@ use super::command_trace::IssuedCommand;
 use super::overtaking_fifo::{OvertakingFifo, PendingWord};
 use super::sdram::{Command, CommandKind, SdramDevice, SdramTiming};
 use super::trace::ModuleProbe;
-use super::voxel_memory::{SampleRequest, VoxelMemory};
+use super::voxel_memory::{SampleRequest, VoxelMemory, WORD_TAG};
 
 /// What one module counted. Cycles are clock cycles.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
@@ -412,11 +412,25 @@ impl VoxelMemory for SdramMemory {
         true
     }
 
+    fn try_push_word(&mut self, tag: u64, voxel: [usize; 3], now: u64) -> bool {
+        let word = self.map.distance_word(voxel);
+        let module = &mut self.modules[word.module as usize];
+        if !module.can_accept() {
+            return false;
+        }
+        module.push(tag as u32, word, now);
+        true
+    }
+
     fn step(&mut self, now: u64, completed: &mut Vec<u64>) {
         self.now = now;
         for module in &mut self.modules {
             module.step(now);
             if let Some(tag) = module.pop_word(now) {
+                if tag as u64 & WORD_TAG != 0 {
+                    completed.push(tag as u64);
+                    continue;
+                }
                 let missing = &mut self.missing[tag as usize];
                 *missing -= 1;
                 if *missing == 0 {

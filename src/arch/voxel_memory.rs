@@ -13,10 +13,18 @@ pub struct SampleRequest {
     pub base: [usize; 3],
 }
 
+/// Tags of one-word reads (`try_push_word`: the distance volume) carry this bit; sample tags
+/// (compositing-buffer entries, below 2^20) never do.
+pub const WORD_TAG: u64 = 1 << 31;
+
 pub trait VoxelMemory {
     /// Enters a request at cycle `now` if it can enter (every address FIFO it needs has room);
     /// false, and nothing changed, if not.
     fn try_push(&mut self, request: SampleRequest, now: u64) -> bool;
+    /// Enters a one-word read of the distance of voxel `voxel` at cycle `now` (`tag` carries
+    /// `WORD_TAG`); false, and nothing changed, if its address FIFO is full. Its tag is
+    /// reported by `step` like a sample's.
+    fn try_push_word(&mut self, tag: u64, voxel: [usize; 3], now: u64) -> bool;
     /// Advances one cycle and appends the tags of samples whose words are all in by `now`.
     fn step(&mut self, now: u64, completed: &mut Vec<u64>);
     /// Whether nothing is pending.
@@ -62,6 +70,12 @@ impl VoxelMemory for IdealMemory {
         true
     }
 
+    fn try_push_word(&mut self, tag: u64, _: [usize; 3], now: u64) -> bool {
+        self.pending.push_back((now + self.latency, tag));
+        self.requests += 1;
+        true
+    }
+
     fn step(&mut self, now: u64, completed: &mut Vec<u64>) {
         while let Some(&(due, tag)) = self.pending.front() {
             if due > now {
@@ -88,6 +102,9 @@ impl VoxelMemory for IdealMemory {
 impl<M: VoxelMemory + ?Sized> VoxelMemory for Box<M> {
     fn try_push(&mut self, request: SampleRequest, now: u64) -> bool {
         (**self).try_push(request, now)
+    }
+    fn try_push_word(&mut self, tag: u64, voxel: [usize; 3], now: u64) -> bool {
+        (**self).try_push_word(tag, voxel, now)
     }
     fn step(&mut self, now: u64, completed: &mut Vec<u64>) {
         (**self).step(now, completed)

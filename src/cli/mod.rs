@@ -287,6 +287,13 @@ pub fn leaping_text(leaping: &vizsim::functional::renderer::Leaping) -> String {
             },
             if *hierarchy { " + hierarchy" } else { "" }
         ),
+        Leaping::Distance { bits, kind } => format!(
+            "leaping with a {bits}-bit {} distance volume",
+            match kind {
+                OccupancyKind::Zero => "'0'",
+                OccupancyKind::Class => "class",
+            }
+        ),
     }
 }
 

@@ -29,7 +29,7 @@ pub struct ExperimentFile {
     /// Classification axis: `zero` ('0' transfer function and map) and/or `class`.
     #[serde(default = "default_tf")]
     pub tf: Vec<String>,
-    /// Acceleration modes: `none`, or `+`-joined `ert`, `leapN`, `hier`.
+    /// Acceleration modes: `none`, or `+`-joined `ert`, `leapN`, `hier`, `distanceN`.
     pub modes: Vec<String>,
     /// `step` (functional model, counts steps) and/or `cycle` (cycle-accurate with SDRAM).
     pub models: Vec<String>,
@@ -82,6 +82,14 @@ pub struct Mode {
     /// 0 = no leaping.
     pub subcube: usize,
     pub hierarchy: bool,
+    /// Bits of the distance volume that leaps (`distanceN`), 0 = none. Serialised only when
+    /// set, so existing results keep their form.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub distance_bits: u32,
+}
+
+fn is_zero(n: &u32) -> bool {
+    *n == 0
 }
 
 impl Mode {
@@ -90,6 +98,7 @@ impl Mode {
             ert: false,
             subcube: 0,
             hierarchy: false,
+            distance_bits: 0,
         };
         if text == "none" {
             return Ok(mode);
@@ -98,6 +107,18 @@ impl Mode {
             match token {
                 "ert" => mode.ert = true,
                 "hier" => mode.hierarchy = true,
+                t if t.starts_with("distance") => {
+                    let n: u32 = t[8..]
+                        .parse()
+                        .map_err(|_| format!("`{t}`: expected distanceN, N the distance bits"))?;
+                    if !config::DISTANCE_BITS_ALLOWED.contains(&n) {
+                        return Err(format!(
+                            "`{t}`: distance bits must be one of {:?}",
+                            config::DISTANCE_BITS_ALLOWED
+                        ));
+                    }
+                    mode.distance_bits = n;
+                }
                 t if t.starts_with("leap") => {
                     let n: usize = t[4..]
                         .parse()
@@ -111,7 +132,7 @@ impl Mode {
                 }
                 t => {
                     return Err(format!(
-                        "unknown token `{t}`; modes are `none` or `+`-joined `ert`, `leapN`, `hier`"
+                        "unknown token `{t}`; modes are `none` or `+`-joined `ert`, `leapN`, `hier`, `distanceN`"
                     ))
                 }
             }
@@ -119,10 +140,13 @@ impl Mode {
         if mode.hierarchy && mode.subcube == 0 {
             return Err("`hier` needs `leapN`".into());
         }
+        if mode.distance_bits > 0 && mode.subcube > 0 {
+            return Err("`leapN` and `distanceN` are two leaping structures; choose one".into());
+        }
         Ok(mode)
     }
 
-    /// Canonical text: `none`, `ert`, `ert+leap8`, `ert+leap8+hier`.
+    /// Canonical text: `none`, `ert`, `ert+leap8`, `ert+leap8+hier`, `ert+distance8`.
     pub fn name(&self) -> String {
         let mut parts = Vec::new();
         if self.ert {
@@ -133,6 +157,9 @@ impl Mode {
         }
         if self.hierarchy {
             parts.push("hier".into());
+        }
+        if self.distance_bits > 0 {
+            parts.push(format!("distance{}", self.distance_bits));
         }
         if parts.is_empty() {
             "none".into()
@@ -200,11 +227,13 @@ pub struct Expansion {
 }
 
 /// Configuration fields a mode or the tf axis sets.
-const MODE_FIELDS: [&str; 4] = [
+const MODE_FIELDS: [&str; 6] = [
     "compositing.ert",
     "occupancy.subcube",
     "occupancy.hierarchy",
     "occupancy.kind",
+    "occupancy.structure",
+    "occupancy.distance_bits",
 ];
 
 /// Reads and expands an experiment file.
@@ -452,6 +481,13 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
                                 c
                             }
                         };
+                        if mode.distance_bits > 0 {
+                            // Set here, not by `--set`, so a base file without the fields works.
+                            config.occupancy.structure = config::LeapStructure::Distance;
+                            config.occupancy.distance_bits = mode.distance_bits;
+                        } else {
+                            config.occupancy.structure = config::LeapStructure::Map;
+                        }
                         let mut fits = true;
                         if mode.subcube > 0 {
                             if mode.subcube > *dims.iter().max().unwrap_or(&0) {

@@ -6,6 +6,7 @@
 
 use super::setup::FixedRay;
 use crate::config::SkipPolicy;
+use crate::leapvalues::distance::{distance_steps, DistanceVolume};
 use crate::occupancy::OccupancyMap;
 use crate::render::RayRecord;
 use crate::skip::{leap_steps, SkipWidths};
@@ -74,6 +75,14 @@ impl Step {
 pub trait SpaceSkipper: Sync {
     /// The step at position `pos` of `ray` (not yet limited to the ray's remaining positions).
     fn decide(&self, pos: [i64; 3], ray: &FixedRay) -> Step;
+
+    /// The voxel whose word in volume memory the decision at `pos` reads, when the strategy's
+    /// structure lives in volume memory (the distance volume); None when it is on chip. The
+    /// cycle model reads that word before the ray at `pos` may issue.
+    #[inline(always)]
+    fn memory_word(&self, _pos: [i64; 3]) -> Option<[usize; 3]> {
+        None
+    }
 }
 
 /// Every position is sampled.
@@ -133,11 +142,70 @@ impl SpaceSkipper for OccupancyLeaping<'_> {
     }
 }
 
+/// Distance-volume leaping (docs/leapvalues.md, step 5; docs/model.md): at a position whose
+/// sample cell has base voxel b, the stored distance d(b) allows n = floor(d / S) steps; n >= 1
+/// leaps n positions (sampling the position first under sample-then-leap), n = 0 samples.
+/// floor(d / S) is a table of 2^bits entries per spacing, as the hardware would hold it.
+pub struct DistanceLeaping<'a> {
+    volume: &'a DistanceVolume,
+    policy: SkipPolicy,
+    /// floor(d / S) per stored distance d.
+    steps: Vec<u64>,
+    /// Position fraction bits (the base voxel is the position's integer part).
+    pos_frac_bits: u32,
+}
+
+impl<'a> DistanceLeaping<'a> {
+    /// `spacing` is the sample spacing S (an upper bound of |V| up to the increment's rounding,
+    /// which the rule's one-step margin covers: docs/leapvalues.md).
+    pub fn new(
+        volume: &'a DistanceVolume,
+        spacing: f32,
+        policy: SkipPolicy,
+        pos_frac_bits: u32,
+    ) -> Self {
+        DistanceLeaping {
+            volume,
+            policy,
+            steps: (0..=volume.saturation())
+                .map(|d| distance_steps(d, spacing))
+                .collect(),
+            pos_frac_bits,
+        }
+    }
+
+    /// The base voxel of the cell a sample at `pos` interpolates in (as
+    /// `FixedRenderer::base_voxel`).
+    #[inline(always)]
+    pub fn base_voxel(&self, pos: [i64; 3]) -> [usize; 3] {
+        let d = self.volume.dims;
+        [0, 1, 2].map(|a| ((pos[a] >> self.pos_frac_bits) as usize).min(d[a] - 2))
+    }
+}
+
+impl SpaceSkipper for DistanceLeaping<'_> {
+    #[inline(always)]
+    fn decide(&self, pos: [i64; 3], _: &FixedRay) -> Step {
+        let n = self.steps[self.volume.distance(self.base_voxel(pos)) as usize];
+        if n == 0 {
+            Step::SAMPLE
+        } else {
+            Step::in_empty_subcube(self.policy, n)
+        }
+    }
+
+    #[inline(always)]
+    fn memory_word(&self, pos: [i64; 3]) -> Option<[usize; 3]> {
+        Some(self.base_voxel(pos))
+    }
+}
+
 /// The strategy a hardware configuration selects, as one type (so callers need no dispatch of
 /// their own). New strategies are added here and in `FixedRenderer::skipper`.
 pub enum ConfiguredSkipper<'a> {
     None(NoSkipping),
     Occupancy(OccupancyLeaping<'a>),
+    Distance(DistanceLeaping<'a>),
 }
 
 impl SpaceSkipper for ConfiguredSkipper<'_> {
@@ -146,6 +214,15 @@ impl SpaceSkipper for ConfiguredSkipper<'_> {
         match self {
             ConfiguredSkipper::None(s) => s.decide(pos, ray),
             ConfiguredSkipper::Occupancy(s) => s.decide(pos, ray),
+            ConfiguredSkipper::Distance(s) => s.decide(pos, ray),
+        }
+    }
+
+    #[inline(always)]
+    fn memory_word(&self, pos: [i64; 3]) -> Option<[usize; 3]> {
+        match self {
+            ConfiguredSkipper::Distance(s) => s.memory_word(pos),
+            _ => None,
         }
     }
 }

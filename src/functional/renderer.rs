@@ -4,12 +4,15 @@
 //! each); the published cost is one step per 12.5 ns (`clock.step_time_ns`).
 
 use super::arith::{interpolate, Accumulator, ClassificationTable, Compositor, Neighbourhood};
-use super::leaping::{ConfiguredSkipper, NoSkipping, OccupancyLeaping, SpaceSkipper};
+use super::leaping::{
+    ConfiguredSkipper, DistanceLeaping, NoSkipping, OccupancyLeaping, SpaceSkipper,
+};
 use super::setup::{check_widths, setup_ray, FixedRay};
 use super::Widths;
 use crate::camera::Camera;
-use crate::config::{HardwareConfig, SkipPolicy};
+use crate::config::{HardwareConfig, LeapStructure, SkipPolicy};
 use crate::error::Result;
+use crate::leapvalues::distance::{distance_volume, DistanceVolume};
 use crate::occupancy::{check_subcube_size, OccupancyKind, OccupancyMap};
 use crate::render::{render_frame, Frame, RayRecord, RenderSettings};
 use crate::shading::{phong_fixed, GradientVolume};
@@ -25,12 +28,22 @@ pub enum Leaping {
         hierarchy: bool,
         kind: OccupancyKind,
     },
+    /// The distance volume (`occupancy.structure = "distance"`), `bits` per stored distance.
+    Distance {
+        bits: u32,
+        kind: OccupancyKind,
+    },
 }
 
 impl Leaping {
     pub fn from_config(config: &HardwareConfig) -> Leaping {
         let o = &config.occupancy;
-        if o.subcube == 0 {
+        if o.structure == LeapStructure::Distance {
+            Leaping::Distance {
+                bits: o.distance_bits,
+                kind: o.kind,
+            }
+        } else if o.subcube == 0 {
             Leaping::None
         } else {
             Leaping::Occupancy {
@@ -52,6 +65,8 @@ pub struct FixedRenderer<'a> {
     /// What a step in an empty sub-cube does (`skip.policy`); no effect without leaping.
     pub skip_policy: SkipPolicy,
     pub map: Option<OccupancyMap>,
+    /// The distance volume, with `Leaping::Distance`.
+    pub distance: Option<DistanceVolume>,
     /// Per-voxel quantised gradients, present when shading.
     pub gradients: Option<GradientVolume>,
 }
@@ -82,7 +97,7 @@ impl<'a> FixedRenderer<'a> {
             settings.background,
         );
         let map = match leaping {
-            Leaping::None => None,
+            Leaping::None | Leaping::Distance { .. } => None,
             Leaping::Occupancy {
                 subcube,
                 hierarchy,
@@ -99,6 +114,17 @@ impl<'a> FixedRenderer<'a> {
                 Some(map)
             }
         };
+        // Visible cells as the occupancy map's kinds define them: '0' any non-zero voxel,
+        // class the classification table's test.
+        let distance = match leaping {
+            Leaping::Distance { bits, kind } => {
+                Some(distance_volume(volume, bits, |lo, hi| match kind {
+                    OccupancyKind::Zero => hi > 0,
+                    OccupancyKind::Class => table.any_visible(lo, hi),
+                })?)
+            }
+            _ => None,
+        };
         let gradients = settings
             .shading
             .then(|| GradientVolume::build(volume, config.shading.gradient_bits));
@@ -112,6 +138,7 @@ impl<'a> FixedRenderer<'a> {
             leaping,
             skip_policy: config.skip.policy,
             map,
+            distance,
         })
     }
 
@@ -121,7 +148,15 @@ impl<'a> FixedRenderer<'a> {
             (Some(map), Leaping::Occupancy { hierarchy, .. }) => ConfiguredSkipper::Occupancy(
                 OccupancyLeaping::new(map, hierarchy, self.skip_policy, self.widths.skip()),
             ),
-            _ => ConfiguredSkipper::None(NoSkipping),
+            _ => match &self.distance {
+                Some(distance) => ConfiguredSkipper::Distance(DistanceLeaping::new(
+                    distance,
+                    self.settings.sample_spacing,
+                    self.skip_policy,
+                    self.widths.position_frac_bits,
+                )),
+                None => ConfiguredSkipper::None(NoSkipping),
+            },
         }
     }
 
