@@ -158,6 +158,7 @@ fn quick_experiment(data_dir: Option<&Path>, out: &Path) -> Result<()> {
         dir: out.to_path_buf(),
         frame_step: 1,
         model: None,
+        dataset: Vec::new(),
     };
     super::results::write_tables(
         &results,

@@ -68,6 +68,9 @@ pub struct ResultsArgs {
     /// Only this model's results (`step` or `cycle`).
     #[arg(long)]
     pub model: Option<String>,
+    /// Only these datasets' results (comma-separated names as in the experiment file).
+    #[arg(long, value_delimiter = ',')]
+    pub dataset: Vec<String>,
 }
 
 impl ResultsArgs {
@@ -89,8 +92,18 @@ impl ResultsArgs {
                 .model
                 .as_deref()
                 .is_none_or(|m| l.get("model").and_then(|v| v.as_str()) == Some(m));
-            frame_kept && model_kept
+            let dataset_kept = self.dataset.is_empty()
+                || l.get("dataset")
+                    .and_then(|v| v.as_str())
+                    .is_some_and(|d| self.dataset.iter().any(|w| w == d));
+            frame_kept && model_kept && dataset_kept
         });
+        anyhow::ensure!(
+            !lines.is_empty() || self.dataset.is_empty(),
+            "{}: no results of --dataset {}",
+            self.dir.display(),
+            self.dataset.join(",")
+        );
         // Key order, not completion order: tables and charts sum in this order.
         lines.sort_by(|a, b| a["key"].as_str().cmp(&b["key"].as_str()));
         Ok(lines)
