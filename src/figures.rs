@@ -28,7 +28,8 @@ fn num(line: &Value, field: &str) -> Option<f64> {
     line.get(field).and_then(Value::as_f64)
 }
 
-fn tf_label(tf: &str) -> &str {
+/// Transfer functions as the tables and charts name them: '0' and class.
+pub fn tf_label(tf: &str) -> &str {
     if tf == "zero" {
         "'0'"
     } else {
@@ -37,7 +38,7 @@ fn tf_label(tf: &str) -> &str {
 }
 
 /// File names keep letters, digits, `.`, `_`, `=` and `-`; anything else becomes `-`.
-fn file_safe(name: &str) -> String {
+pub fn file_safe(name: &str) -> String {
     name.chars()
         .map(|c| {
             if c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '=' | '-') {

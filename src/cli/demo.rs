@@ -7,6 +7,7 @@ use std::time::Instant;
 use anyhow::Result;
 use clap::Args;
 use vizsim::config::HardwareConfig;
+use vizsim::figures::{file_safe, tf_label};
 use vizsim::run::{self, Model, Probes, RunDescription};
 use vizsim::volume::dataset;
 
@@ -171,27 +172,6 @@ fn quick_experiment(data_dir: Option<&Path>, out: &Path) -> Result<()> {
     let charts = vizsim::figures::write_all(&lines, &out.join("plots"))?;
     println!("{charts} charts -> {}", out.join("plots").display());
     Ok(())
-}
-
-/// Transfer functions as the tables and charts name them: '0' and class.
-fn tf_label(tf: &str) -> &str {
-    if tf == "zero" {
-        "'0'"
-    } else {
-        tf
-    }
-}
-
-fn file_safe(name: &str) -> String {
-    name.chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
-                c
-            } else {
-                '-'
-            }
-        })
-        .collect()
 }
 
 /// Tiles frames of equal size into one PNG, `columns` per row, each under a strip with its
