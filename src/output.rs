@@ -6,10 +6,9 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 
-pub fn write_atomically(
-    path: &Path,
-    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
-) -> Result<()> {
+/// The temporary name a file is written under before it is renamed to `path`: hidden, in the
+/// same folder (created if missing), so the rename never crosses file systems.
+fn temporary_path(path: &Path) -> Result<std::path::PathBuf> {
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => std::path::PathBuf::from("."),
@@ -23,6 +22,14 @@ pub fn write_atomically(
         file_name.to_string_lossy(),
         std::process::id()
     ));
+    Ok(tmp)
+}
+
+pub fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<()> {
+    let tmp = temporary_path(path)?;
     let result = (|| {
         let file = std::fs::File::create(&tmp)?;
         let mut writer = std::io::BufWriter::new(file);
@@ -60,19 +67,7 @@ pub struct PendingFile {
 
 impl PendingFile {
     pub fn create(path: &Path) -> Result<PendingFile> {
-        let dir = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => std::path::PathBuf::from("."),
-        };
-        std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-        let file_name = path
-            .file_name()
-            .ok_or_else(|| Error::Invalid(format!("{}: not a file path", path.display())))?;
-        let tmp = dir.join(format!(
-            ".{}.tmp{}",
-            file_name.to_string_lossy(),
-            std::process::id()
-        ));
+        let tmp = temporary_path(path)?;
         let file = std::fs::File::create(&tmp).map_err(|e| Error::io(path, e))?;
         Ok(PendingFile {
             path: path.to_path_buf(),
