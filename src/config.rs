@@ -30,6 +30,146 @@ pub struct HardwareConfig {
     pub compositing: CompositingConfig,
     pub memory: MemoryConfig,
     pub sdram: SdramTiming,
+    /// Bounding bricks: per-ray start and end (docs/model.md, "Ray start and end"). Written
+    /// out only when on (`size` > 0), so existing run keys are unchanged.
+    #[serde(default, skip_serializing_if = "BricksConfig::is_off")]
+    pub bricks: BricksConfig,
+    /// Clip planes and a clip box. Written out only when any is set.
+    #[serde(default, skip_serializing_if = "ClipConfig::is_off")]
+    pub clip: ClipConfig,
+    /// Opaque geometry embedded in the volume. Written out only when a shape is set.
+    #[serde(default, skip_serializing_if = "GeometryConfig::is_off")]
+    pub geometry: GeometryConfig,
+}
+
+/// `[bricks]`: bounding bricks give each ray a start (the first sample in an active brick) and
+/// an end (after the last one); how ray setup learns them is `setup`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BricksConfig {
+    /// Brick edge in voxels: 0 = off, else 4, 8, 16 or 32 (not larger than the volume).
+    /// Bricks are active by `occupancy.kind` ('0': any non-zero voxel; class: min-max test).
+    pub size: usize,
+    /// "traversal" (ray setup walks the brick grid per ray) or "table" (a per-pixel start/end
+    /// table loaded from the host each frame).
+    pub setup: BrickSetup,
+    /// Traversal: cycles of ray setup per ray, plus `setup_cycles_per_brick` per brick visited.
+    pub setup_cycles_per_ray: u32,
+    pub setup_cycles_per_brick: u32,
+    /// Table: bytes per pixel entry (start and end sample index).
+    pub table_entry_bytes: u32,
+    /// Table: bytes per clock cycle the host link delivers.
+    pub table_bytes_per_cycle: f64,
+}
+
+impl Default for BricksConfig {
+    fn default() -> Self {
+        BricksConfig {
+            size: 0,
+            setup: BrickSetup::Traversal,
+            setup_cycles_per_ray: 1,
+            setup_cycles_per_brick: 1,
+            table_entry_bytes: 4,
+            table_bytes_per_cycle: 1.0,
+        }
+    }
+}
+
+impl BricksConfig {
+    pub fn is_off(&self) -> bool {
+        self.size == 0
+    }
+}
+
+/// How ray setup obtains a ray's start and end from the bricks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BrickSetup {
+    /// Ray setup walks the brick grid (a 3D DDA) per ray; its cycles are counted.
+    #[default]
+    Traversal,
+    /// The host supplies a per-pixel start/end table each frame; its load time is counted.
+    Table,
+}
+
+/// Allowed `bricks.size` (besides 0 = off).
+pub const BRICK_SIZES: [usize; 4] = [4, 8, 16, 32];
+
+/// `[clip]`: clip planes and a clip box in voxel coordinates; a sample is kept when it is on
+/// the kept side of every plane and inside the box.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClipConfig {
+    /// Planes: a sample at x is kept when (x - point)·normal >= 0.
+    #[serde(default)]
+    pub planes: Vec<ClipPlane>,
+    /// Clip box `[[min x, y, z], [max x, y, z]]` (voxel coordinates, inclusive); empty = none.
+    #[serde(default, rename = "box")]
+    pub clip_box: Vec<[f32; 3]>,
+}
+
+impl ClipConfig {
+    pub fn is_off(&self) -> bool {
+        self.planes.is_empty() && self.clip_box.is_empty()
+    }
+
+    /// The clip box as (min, max), when set (validated: two corners).
+    pub fn box_corners(&self) -> Option<([f32; 3], [f32; 3])> {
+        match self.clip_box.as_slice() {
+            [lo, hi] => Some((*lo, *hi)),
+            _ => None,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClipPlane {
+    pub point: [f32; 3],
+    pub normal: [f32; 3],
+}
+
+/// `[geometry]`: one opaque object; rays end at its surface and its colour is composited
+/// behind the volume.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GeometryConfig {
+    /// "none", "sphere" (analytic: `centre`, `radius`) or "depth-file" (`file`).
+    pub shape: GeometryShape,
+    /// Sphere centre and radius, voxel coordinates.
+    pub centre: [f32; 3],
+    pub radius: f32,
+    /// Surface colour (RGB 0..=1); the sphere is lit by the headlight.
+    pub colour: [f32; 3],
+    /// Depth image (docs/model.md, "Depth file format"); must match the image size.
+    pub file: String,
+}
+
+impl Default for GeometryConfig {
+    fn default() -> Self {
+        GeometryConfig {
+            shape: GeometryShape::None,
+            centre: [0.0; 3],
+            radius: 1.0,
+            colour: [1.0, 1.0, 1.0],
+            file: String::new(),
+        }
+    }
+}
+
+impl GeometryConfig {
+    pub fn is_off(&self) -> bool {
+        self.shape == GeometryShape::None
+    }
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum GeometryShape {
+    #[default]
+    None,
+    Sphere,
+    DepthFile,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -230,6 +370,9 @@ impl HardwareConfig {
         let mut table: toml::Table = text
             .parse()
             .map_err(|e| Error::format(source, format!("invalid TOML: {e}")))?;
+        // Sections added after the preset files were written: present with their defaults,
+        // so `--set bricks.size=8` works on any file.
+        insert_default_sections(&mut table);
         for assignment in overrides {
             apply_override(&mut table, assignment)?;
         }
@@ -263,7 +406,8 @@ impl HardwareConfig {
         }
         let fields = |config: &HardwareConfig| {
             let mut out = Vec::new();
-            if let Ok(table) = toml::Table::try_from(config) {
+            if let Ok(mut table) = toml::Table::try_from(config) {
+                insert_default_sections(&mut table);
                 flatten("", &table, &mut out);
             }
             out
@@ -428,7 +572,142 @@ impl HardwareConfig {
                 format!("{step} is out of range; allowed (0, 1e6] ns"),
             ));
         }
+        self.validate_ray_range(source)
+    }
+
+    /// `[bricks]`, `[clip]` and `[geometry]`.
+    fn validate_ray_range(&self, source: &str) -> Result<()> {
+        let b = &self.bricks;
+        if b.size != 0 && !BRICK_SIZES.contains(&b.size) {
+            return Err(Error::config(
+                source,
+                "bricks.size",
+                format!(
+                    "{} is not allowed; allowed 0 (off) or a power of two in {BRICK_SIZES:?}",
+                    b.size
+                ),
+            ));
+        }
+        let range = |field: &str, value: u64, lo: u64, hi: u64| -> Result<()> {
+            if value < lo || value > hi {
+                return Err(Error::config(
+                    source,
+                    field,
+                    format!("{value} is out of range; allowed {lo}..={hi}"),
+                ));
+            }
+            Ok(())
+        };
+        range(
+            "bricks.setup_cycles_per_ray",
+            b.setup_cycles_per_ray as u64,
+            0,
+            1 << 16,
+        )?;
+        range(
+            "bricks.setup_cycles_per_brick",
+            b.setup_cycles_per_brick as u64,
+            0,
+            1 << 16,
+        )?;
+        range(
+            "bricks.table_entry_bytes",
+            b.table_entry_bytes as u64,
+            1,
+            64,
+        )?;
+        let bw = b.table_bytes_per_cycle;
+        if !(bw.is_finite() && bw > 0.0 && bw <= 1e6) {
+            return Err(Error::config(
+                source,
+                "bricks.table_bytes_per_cycle",
+                format!("{bw} is out of range; allowed (0, 1e6]"),
+            ));
+        }
+        let finite = |field: String, v: &[f32]| -> Result<()> {
+            if v.iter().all(|x| x.is_finite() && x.abs() <= 1e6) {
+                Ok(())
+            } else {
+                Err(Error::config(
+                    source,
+                    field,
+                    format!("{v:?}: every component must be finite, |x| <= 1e6"),
+                ))
+            }
+        };
+        for (i, plane) in self.clip.planes.iter().enumerate() {
+            finite(format!("clip.planes[{i}].point"), &plane.point)?;
+            finite(format!("clip.planes[{i}].normal"), &plane.normal)?;
+            if plane.normal.iter().all(|&x| x == 0.0) {
+                return Err(Error::config(
+                    source,
+                    format!("clip.planes[{i}].normal"),
+                    "is zero; a clip plane needs a non-zero normal (it points to the kept side)",
+                ));
+            }
+        }
+        match self.clip.clip_box.as_slice() {
+            [] => {}
+            [lo, hi] => {
+                finite("clip.box".into(), lo)?;
+                finite("clip.box".into(), hi)?;
+                if (0..3).any(|a| lo[a] > hi[a]) {
+                    return Err(Error::config(
+                        source,
+                        "clip.box",
+                        format!("max corner {hi:?} is below the min corner {lo:?} on some axis"),
+                    ));
+                }
+            }
+            other => {
+                return Err(Error::config(
+                    source,
+                    "clip.box",
+                    format!(
+                        "{} corners; expected none or two: [[min x, y, z], [max x, y, z]]",
+                        other.len()
+                    ),
+                ))
+            }
+        }
+        let g = &self.geometry;
+        finite("geometry.centre".into(), &g.centre)?;
+        if !(g.radius.is_finite() && g.radius > 0.0 && g.radius <= 1e6) {
+            return Err(Error::config(
+                source,
+                "geometry.radius",
+                format!("{} is out of range; allowed (0, 1e6] voxels", g.radius),
+            ));
+        }
+        if g.colour.iter().any(|c| !(0.0..=1.0).contains(c)) {
+            return Err(Error::config(
+                source,
+                "geometry.colour",
+                format!("{:?}: each component allowed 0..=1", g.colour),
+            ));
+        }
+        if g.shape == GeometryShape::DepthFile && g.file.is_empty() {
+            return Err(Error::config(
+                source,
+                "geometry.file",
+                "is empty; geometry.shape = \"depth-file\" needs a depth image file",
+            ));
+        }
         Ok(())
+    }
+}
+
+/// Adds the optional sections (`[bricks]`, `[clip]`, `[geometry]`) with their defaults where a
+/// table lacks them (they are not written out when off).
+fn insert_default_sections(table: &mut toml::Table) {
+    for (name, default) in [
+        ("bricks", toml::Table::try_from(BricksConfig::default())),
+        ("clip", toml::Table::try_from(ClipConfig::default())),
+        ("geometry", toml::Table::try_from(GeometryConfig::default())),
+    ] {
+        if let (false, Ok(default)) = (table.contains_key(name), default) {
+            table.insert(name.to_string(), toml::Value::Table(default));
+        }
     }
 }
 

@@ -25,5 +25,8 @@ pub mod skip;
 pub mod tables;
 pub mod transfer;
 pub mod volume;
+// Ray start and end (issue 15).
+pub mod bricks;
+pub mod clip;
 
 pub use error::{Error, Result};

@@ -18,6 +18,7 @@ use crate::arch::pipeline::{simulate_with, CycleStats, SimOptions, StallCycles};
 use crate::arch::sdram_module::SdramMemory;
 use crate::arch::trace::Waveform;
 use crate::arch::voxel_memory::{IdealMemory, VoxelMemory};
+use crate::bricks::RayRangeStats;
 use crate::camera::{check_image_size, Camera, Projection, View};
 use crate::config::{HardwareConfig, RaySelection};
 use crate::error::{Error, Result};
@@ -193,7 +194,9 @@ pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<
     let tf = transfer::resolve(&run.tf, &volume.name)?;
     let settings = run.settings();
     let renderer = match run.model {
-        Model::Float => Renderer::Float(FloatRenderer::new(volume, &tf, &settings)?),
+        Model::Float => Renderer::Float(
+            FloatRenderer::new(volume, &tf, &settings)?.with_ray_range(&run.hardware)?,
+        ),
         Model::Step | Model::Cycle => {
             if run.model == Model::Cycle && run.memory == Memory::Sdram {
                 let distance = matches!(run.leaping(), Leaping::Distance { .. });
@@ -212,6 +215,10 @@ pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<
             )?))
         }
     };
+    // A depth image must match the image it is rendered into.
+    if let Some(scene) = crate::clip::Scene::from_config(&run.hardware)? {
+        scene.check_image_size(run.size.0, run.size.1)?;
+    }
     Ok(Prepared {
         volume,
         transfer_function: tf.name,
@@ -267,6 +274,10 @@ pub struct Measurements {
     /// Leaping: empty sub-cubes of the occupancy map, percent.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub skippable_subcubes_percent: Option<f64>,
+    /// Ray start and end (`[bricks]`, `[clip]`, `[geometry]`): positions before and after,
+    /// and (cycle model) the setup's cycles or the start/end table; absent when all are off.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ray_range: Option<RayRangeStats>,
 }
 
 /// What a run produced: its description, the figures, the image.
@@ -382,6 +393,12 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         m.page_hit_rate = ms["row_hit_rate"].as_f64();
         m.avg_ns_per_voxel_access = ms["avg_ns_per_voxel_access"].as_f64();
     }
+    if ray_range_on(config) {
+        m.ray_range = Some(match pipeline.as_ref().and_then(|p| p.ray_range.clone()) {
+            Some(r) => r,
+            None => RayRangeStats::from_records(&frame.rays),
+        });
+    }
     if let Some(map) = prepared.fixed().and_then(|r| r.map.as_ref()) {
         m.skippable_subcubes_percent =
             Some(100.0 * map.empty_subcubes() as f64 / map.subcubes().max(1) as f64);
@@ -401,6 +418,11 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         measurements: m,
         frame,
     })
+}
+
+/// Whether any of `[bricks]`, `[clip]`, `[geometry]` is on.
+pub fn ray_range_on(config: &HardwareConfig) -> bool {
+    !(config.bricks.is_off() && config.clip.is_off() && config.geometry.is_off())
 }
 
 fn simulate_on<M: VoxelMemory>(

@@ -27,6 +27,7 @@ use super::ray_queue::{RayQueue, RaySlot};
 use super::skip_unit::{PositionUpdate, SkipUnit};
 use super::trace::{Probe, Waveform};
 use super::voxel_memory::{SampleRequest, VoxelMemory, WORD_TAG};
+use crate::bricks::{setup_cycles, table_cost, RayRangeStats};
 use crate::camera::Camera;
 use crate::config::HardwareConfig;
 use crate::error::{Error, Result};
@@ -85,6 +86,10 @@ pub struct CycleStats {
     pub compositing_buffer_occupancy: Vec<u64>,
     /// Cycles the clock jumped over because nothing could happen (equal results to ticking).
     pub skipped_cycles: u64,
+    /// Ray start and end (`[bricks]`, `[clip]`, `[geometry]`): positions cut, ray-setup
+    /// traversal cycles, start/end table; absent when all are off.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ray_range: Option<RayRangeStats>,
 }
 
 pub struct CycleResult {
@@ -98,6 +103,8 @@ struct RayProgress {
     acc: Accumulator,
     /// Headlight direction for shading (from ray setup).
     light: [i32; 3],
+    /// Opaque surface composited behind instead of the background (geometry).
+    surface: Option<[u32; 4]>,
     /// Sample positions of the ray.
     positions: u32,
     /// Reached the ERT threshold at the compositing stage.
@@ -203,6 +210,8 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
     let mut word_requests: VecDeque<(usize, [usize; 3])> = VecDeque::new();
     let mut waiting_words = 0usize;
     let mut next_setup = 0usize;
+    // The ray in the setup unit: (ray id, its setup, cycle it is ready).
+    let mut in_setup: Option<(usize, crate::functional::setup::FixedRay, u64)> = None;
     let mut retired = 0usize;
 
     let stage_latency = config.compositing.stage_latency as u64;
@@ -212,6 +221,14 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
         rays: ray_count as u64,
         ray_queue_occupancy: vec![0; config.ray_queue.rays + 1],
         compositing_buffer_occupancy: vec![0; config.compositing.buffer_capacity + 1],
+        ray_range: renderer.ray_range.as_ref().map(|_| {
+            let traversal = setup_cycles_on(config);
+            RayRangeStats {
+                setup_cycles: traversal.then_some(0),
+                bricks_visited: traversal.then_some(0),
+                ..RayRangeStats::default()
+            }
+        }),
         ..Default::default()
     };
     let mut last_progress = 0u64;
@@ -226,7 +243,7 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
         let p = &mut progress[ray_id];
         if !p.retired && p.issued_total == Some(p.done) {
             p.retired = true;
-            pixels[ray_id] = compositor.finish(&p.acc);
+            pixels[ray_id] = compositor.finish_ray(&p.acc, p.surface);
             debug_assert!(!written[ray_id], "pixel {ray_id} written twice");
             written[ray_id] = true;
             *retired += 1;
@@ -379,23 +396,43 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
         let stall = issued.err();
 
         // Ray setup: fill free slots; rays that miss the volume write the background at once.
+        // The setup unit works on one ray at a time; with `bricks.setup = "traversal"` a ray
+        // takes `setup_cycles` (per ray + per brick visited) before it can enter the queue, so
+        // a slow setup starves the queue (`ray_queue_empty`). Without it a ray is ready at once.
         for _ in 0..config.ray_queue.setups_per_cycle {
-            if next_setup >= ray_count {
+            if in_setup.is_none() {
+                if next_setup >= ray_count {
+                    break;
+                }
+                let ray_id = order[next_setup];
+                next_setup += 1;
+                let (px, py) = (ray_id as u32 % w, ray_id as u32 / w);
+                let ray = renderer.setup(camera, px, py);
+                let cost = setup_cycles(config, &ray);
+                if let Some(r) = stats.ray_range.as_mut() {
+                    r.setup_cycles = r.setup_cycles.map(|c| c + cost);
+                    r.bricks_visited = r.bricks_visited.map(|b| b + ray.bricks_visited as u64);
+                }
+                in_setup = Some((ray_id, ray, now + cost));
+            }
+            let Some((ray_id, ray, ready)) = in_setup else {
+                break;
+            };
+            if ready > now {
                 break;
             }
             let Some(free) = queue.free_slot() else { break };
-            let ray_id = order[next_setup];
-            next_setup += 1;
+            in_setup = None;
             moved = true;
-            let (px, py) = (ray_id as u32 % w, ray_id as u32 / w);
-            let ray = renderer.setup(camera, px, py);
             records[ray_id] = RayRecord {
                 hit: ray.samples > 0,
                 first_sample: ray.first_k,
                 end_sample: ray.first_k + ray.samples as i64,
+                positions_cut: ray.cut,
                 ..RayRecord::default()
             };
             progress[ray_id].light = ray.light;
+            progress[ray_id].surface = ray.surface;
             progress[ray_id].positions = ray.samples;
             if ray.samples == 0 {
                 progress[ray_id].issued_total = Some(0);
@@ -456,6 +493,7 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
                 memory.next_event(now),
                 stages.front().map(|s| s.due),
                 feedback.front().map(|&(due, _)| due),
+                in_setup.map(|(_, _, ready)| ready).filter(|&t| t > now),
             ]
             .into_iter()
             .flatten()
@@ -495,6 +533,21 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
         now += span;
     }
     stats.cycles = now;
+    if let Some(r) = stats.ray_range.as_mut() {
+        let totals = RayRangeStats::from_records(&records);
+        r.positions_in_box = totals.positions_in_box;
+        r.positions_in_range = totals.positions_in_range;
+        r.positions_cut = totals.positions_cut;
+        // The start/end table is loaded from the host before the first ray is set up: its
+        // cycles come first in the frame (the pipeline idles; the memory only refreshes).
+        if let Some((bytes, load)) = table_cost(config, ray_count as u64) {
+            r.table_bytes = Some(bytes);
+            r.table_load_cycles = Some(load);
+            stats.cycles += load;
+            stats.ray_queue_occupancy[0] += load;
+            stats.compositing_buffer_occupancy[0] += load;
+        }
+    }
     if let Some(trace) = command_trace {
         trace.end(now);
     }
@@ -521,6 +574,11 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
         },
         stats,
     })
+}
+
+/// Whether ray setup traverses the brick grid (its cycles are counted).
+fn setup_cycles_on(config: &HardwareConfig) -> bool {
+    !config.bricks.is_off() && config.bricks.setup == crate::config::BrickSetup::Traversal
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

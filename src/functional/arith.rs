@@ -194,14 +194,25 @@ impl Compositor {
 
     /// The final pixel: background composited behind, each channel rounded to 8 bits.
     pub fn finish(&self, acc: &Accumulator) -> [u8; 4] {
+        self.finish_over(acc, self.background)
+    }
+
+    /// The final pixel of a ray: its opaque surface (`FixedRay::surface`, accumulator units)
+    /// composited behind when it has one, else the background.
+    pub fn finish_ray(&self, acc: &Accumulator, surface: Option<[u32; 4]>) -> [u8; 4] {
+        self.finish_over(acc, surface.unwrap_or(self.background))
+    }
+
+    /// The final pixel with `background` (accumulator units) composited behind.
+    pub fn finish_over(&self, acc: &Accumulator, background: [u32; 4]) -> [u8; 4] {
         let rest = self.unit - acc.alpha;
         let u = self.unit as u64;
         let to8 = |x: u32| ((x as u64 * 255 + u / 2) / u) as u8;
         [
-            to8(acc.colour[0] + self.mul(rest, self.background[0])),
-            to8(acc.colour[1] + self.mul(rest, self.background[1])),
-            to8(acc.colour[2] + self.mul(rest, self.background[2])),
-            to8(acc.alpha + self.mul(rest, self.background[3])),
+            to8(acc.colour[0] + self.mul(rest, background[0])),
+            to8(acc.colour[1] + self.mul(rest, background[1])),
+            to8(acc.colour[2] + self.mul(rest, background[2])),
+            to8(acc.alpha + self.mul(rest, background[3])),
         ]
     }
 }

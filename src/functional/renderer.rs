@@ -9,6 +9,7 @@ use super::leaping::{
 };
 use super::setup::{check_widths, setup_ray, FixedRay};
 use super::Widths;
+use crate::bricks::FixedRange;
 use crate::camera::Camera;
 use crate::config::{HardwareConfig, LeapStructure, SkipPolicy};
 use crate::error::Result;
@@ -69,6 +70,8 @@ pub struct FixedRenderer<'a> {
     pub distance: Option<DistanceVolume>,
     /// Per-voxel quantised gradients, present when shading.
     pub gradients: Option<GradientVolume>,
+    /// Ray start and end (`[bricks]`, `[clip]`, `[geometry]`); None when all are off.
+    pub ray_range: Option<FixedRange>,
 }
 
 impl<'a> FixedRenderer<'a> {
@@ -128,7 +131,15 @@ impl<'a> FixedRenderer<'a> {
         let gradients = settings
             .shading
             .then(|| GradientVolume::build(volume, config.shading.gradient_bits));
+        let ray_range = FixedRange::from_config(
+            volume,
+            config,
+            &table,
+            widths.position_frac_bits,
+            compositor.unit,
+        )?;
         Ok(FixedRenderer {
+            ray_range,
             gradients,
             volume,
             widths,
@@ -166,7 +177,10 @@ impl<'a> FixedRenderer<'a> {
 
     pub fn render_with<S: SpaceSkipper>(&self, camera: &Camera, skipper: &S) -> Frame {
         render_frame(camera.width, camera.height, |px, py| {
-            self.cast(&self.setup(camera, px, py), skipper)
+            let ray = self.setup(camera, px, py);
+            let (rgba, mut record) = self.cast(&ray, skipper);
+            record.positions_cut = ray.cut;
+            (rgba, record)
         })
     }
 
@@ -185,12 +199,16 @@ impl<'a> FixedRenderer<'a> {
     /// Fixed-point setup of the ray through pixel (px, py).
     pub fn setup(&self, camera: &Camera, px: u32, py: u32) -> FixedRay {
         let ray = camera.voxel_ray(px, py, self.volume.spacing);
-        setup_ray(
+        let fixed = setup_ray(
             &ray,
             self.volume.dims,
             self.settings.sample_spacing,
             &self.widths,
-        )
+        );
+        match &self.ray_range {
+            Some(range) => range.apply(&ray, fixed, (px, py), self.settings.sample_spacing),
+            None => fixed,
+        }
     }
 
     /// The classified (and, when shading, shaded) sample at a position of a ray.
@@ -239,6 +257,6 @@ impl<'a> FixedRenderer<'a> {
                 pos[a] += step.advance as i64 * ray.step[a];
             }
         }
-        (self.compositor.finish(&acc), record)
+        (self.compositor.finish_ray(&acc, ray.surface), record)
     }
 }

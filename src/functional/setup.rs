@@ -31,6 +31,14 @@ pub struct FixedRay {
     /// The ray direction for the headlight, rounded to nearest with
     /// `shading::LIGHT_FRAC_BITS` fraction bits.
     pub light: [i32; 3],
+    /// Positions inside the box that the ray's start and end (bricks, clipping, geometry;
+    /// `crate::bricks`) removed; 0 without them.
+    pub cut: u32,
+    /// Bricks the ray-setup traversal visited (`bricks::fixed_span`); 0 without bricks.
+    pub bricks_visited: u32,
+    /// The opaque surface behind the volume in this pixel (accumulator units, composited
+    /// instead of the background); None without geometry there.
+    pub surface: Option<[u32; 4]>,
 }
 
 /// Checks that the widths can represent positions inside this volume and increments at this
@@ -76,6 +84,9 @@ pub fn setup_ray(ray: &Ray, dims: [usize; 3], spacing: f32, widths: &Widths) -> 
         samples: 0,
         first_k: 0,
         light,
+        cut: 0,
+        bricks_visited: 0,
+        surface: None,
     };
     let Some((t_enter, t_exit)) = clip_to_box(ray, dims) else {
         return miss;
@@ -118,6 +129,7 @@ pub fn setup_ray(ray: &Ray, dims: [usize; 3], spacing: f32, widths: &Widths) -> 
         samples: (k_hi - k_lo + 1) as u32,
         first_k: first + k_lo,
         light,
+        ..miss
     }
 }
 

@@ -13,7 +13,9 @@
 use glam::{Vec3A, Vec4};
 
 use super::{clip_to_box, render_frame, sample_range, Frame, RayRecord, RenderSettings};
+use crate::bricks::FloatRange;
 use crate::camera::{Camera, Ray};
+use crate::config::HardwareConfig;
 use crate::error::Result;
 use crate::shading::{phong_float, voxel_gradient};
 use crate::transfer::{correct_opacity, TransferFunction};
@@ -26,6 +28,8 @@ pub struct FloatRenderer<'a> {
     /// that interpolation at the top density needs no branch.
     table: Vec<Vec4>,
     settings: RenderSettings,
+    /// Ray start and end (bricks, clipping, geometry); None when off.
+    ray_range: Option<Box<FloatRange>>,
 }
 
 impl<'a> FloatRenderer<'a> {
@@ -46,23 +50,44 @@ impl<'a> FloatRenderer<'a> {
             volume,
             table,
             settings: settings.clone(),
+            ray_range: None,
         })
+    }
+
+    /// Adds the configuration's ray start and end (`[bricks]`, `[clip]`, `[geometry]`).
+    pub fn with_ray_range(mut self, config: &HardwareConfig) -> Result<Self> {
+        self.ray_range = FloatRange::from_config(self.volume, config, &self.table)?.map(Box::new);
+        Ok(self)
     }
 
     pub fn render(&self, camera: &Camera) -> Frame {
         render_frame(camera.width, camera.height, |px, py| {
-            self.cast(&camera.voxel_ray(px, py, self.volume.spacing))
+            self.cast_pixel(&camera.voxel_ray(px, py, self.volume.spacing), (px, py))
         })
     }
 
     /// Casts one ray; returns the final pixel and what the ray did.
     pub fn cast(&self, ray: &Ray) -> ([u8; 4], RayRecord) {
+        self.cast_pixel(ray, (0, 0))
+    }
+
+    /// Casts the ray of pixel (px, py) (the pixel matters only for a depth image).
+    pub fn cast_pixel(&self, ray: &Ray, pixel: (u32, u32)) -> ([u8; 4], RayRecord) {
         let mut record = RayRecord::default();
         // Accumulated (R, G, B, A): a sample of colour c and opacity a adds (1 - A)·a·(c, 1).
         let mut acc = Vec4::ZERO;
+        let mut surface = None;
         if let Some((t_enter, t_exit)) = clip_to_box(ray, self.volume.dims) {
             let s = self.settings.sample_spacing;
-            let (first, end) = sample_range(t_enter, t_exit, s);
+            let (mut first, mut end) = sample_range(t_enter, t_exit, s);
+            if let Some(range) = &self.ray_range {
+                // The same positions as the loop below computes.
+                let l = range.limits(ray, pixel, s, first, end, |k| {
+                    ray.origin + ray.dir * (k as f32 * s)
+                });
+                record.positions_cut = ((end - first) - (l.end - l.first)) as u32;
+                (first, end, surface) = (l.first, l.end, l.surface);
+            }
             record.t_enter = t_enter;
             record.t_exit = t_exit;
             record.first_sample = first;
@@ -85,7 +110,13 @@ impl<'a> FloatRenderer<'a> {
                 }
             }
         }
-        let bg = Vec4::from_array(self.settings.background);
+        if let (None, Some(scene)) = (surface, self.ray_range.as_ref().and_then(|r| r.scene())) {
+            // A ray that misses the volume (or has no sample in it) still meets the geometry.
+            surface = scene
+                .limits(ray, pixel.0, pixel.1, self.settings.sample_spacing)
+                .surface;
+        }
+        let bg = Vec4::from_array(surface.unwrap_or(self.settings.background));
         let out = acc + (1.0 - acc.w) * bg;
         (
             [to_u8(out.x), to_u8(out.y), to_u8(out.z), to_u8(out.w)],

@@ -80,6 +80,14 @@ pub struct RayRecord {
     pub t_exit: f32,
     /// Stopped by early ray termination before its last sample.
     pub terminated_early: bool,
+    /// Sample positions inside the box that the ray's start and end (bricks, clipping,
+    /// geometry) removed; `first_sample..end_sample` is what remains. Not written when 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub positions_cut: u32,
+}
+
+fn is_zero(n: &u32) -> bool {
+    *n == 0
 }
 
 /// Totals over a frame.

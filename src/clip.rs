@@ -1,0 +1,278 @@
+//! Clipping and opaque geometry: what ends or starts a ray besides the volume's box.
+//!
+//! Everything here is computed per ray from the float camera ray (`camera::Ray`, voxel space)
+//! and turned into a range of global sample indices k (samples at t = k·S): every model takes
+//! the same range, so clipping and geometry cut exactly the same samples in the float
+//! reference, the functional model and the cycle model.
+//!
+//! - **Clip planes** (`[clip] planes`): a sample at x is kept when (x - point)·normal >= 0.
+//! - **Clip box** (`[clip] box_min`, `box_max`): a sample is kept inside [min, max].
+//! - **Opaque geometry** (`[geometry]`): per pixel the ray parameter t of the first opaque
+//!   surface; samples with t >= that depth are not taken, and the surface's colour (opaque)
+//!   replaces the background behind the volume. Shapes: an analytic sphere (lit by the
+//!   headlight), or a depth image file (below) with one colour.
+//!
+//! **Depth file format** (`geometry.shape = "depth-file"`): the ASCII line `VIZDEPTH W H\n`
+//! (W, H the image size in pixels, which must equal the rendered image's), then W·H
+//! little-endian f32 values, row-major, top row first: the ray parameter t (voxels, the
+//! renderers' t along the pixel's voxel-space ray) of the first opaque surface. A negative or
+//! non-finite value means no surface in that pixel. `write_depth_file` writes one.
+
+use std::path::Path;
+
+use crate::camera::Ray;
+use crate::config::{ClipPlane, GeometryShape, HardwareConfig};
+use crate::error::{Error, Result};
+
+/// An opaque surface colour, RGBA in 0..=1 (alpha 1).
+pub type SurfaceColour = [f32; 4];
+
+/// What the scene leaves of one ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Limits {
+    /// Samples with global index k in [k_lo, k_end) are kept (before box and bricks).
+    pub k_lo: i64,
+    pub k_end: i64,
+    /// The opaque surface behind the volume in this pixel.
+    pub surface: Option<SurfaceColour>,
+}
+
+/// A depth image: per pixel the t of the first opaque surface (None: no surface).
+#[derive(Clone, Debug)]
+pub struct DepthImage {
+    pub width: u32,
+    pub height: u32,
+    pub depth: Vec<f32>,
+}
+
+const DEPTH_MAGIC: &str = "VIZDEPTH";
+
+impl DepthImage {
+    pub fn read(path: &Path) -> Result<DepthImage> {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bad = |m: String| Error::format(path, m);
+        let line_end = bytes
+            .iter()
+            .take(64)
+            .position(|&b| b == b'\n')
+            .ok_or_else(|| bad(format!("no `{DEPTH_MAGIC} W H` header line")))?;
+        let header = std::str::from_utf8(&bytes[..line_end])
+            .map_err(|_| bad("header is not text".into()))?;
+        let fields: Vec<&str> = header.split_whitespace().collect();
+        let (w, h) = match fields.as_slice() {
+            [magic, w, h] if *magic == DEPTH_MAGIC => (w.parse::<u32>(), h.parse::<u32>()),
+            _ => {
+                return Err(bad(format!(
+                    "header `{header}`: expected `{DEPTH_MAGIC} W H`"
+                )))
+            }
+        };
+        let (Ok(width), Ok(height)) = (w, h) else {
+            return Err(bad(format!("header `{header}`: W and H must be integers")));
+        };
+        crate::camera::check_image_size(width, height).map_err(|e| bad(format!("header: {e}")))?;
+        let body = &bytes[line_end + 1..];
+        let expected = width as usize * height as usize * 4;
+        if body.len() != expected {
+            return Err(bad(format!(
+                "{} bytes of depth values; a {width}x{height} image needs {expected} (4 per pixel)",
+                body.len()
+            )));
+        }
+        let depth = body
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        Ok(DepthImage {
+            width,
+            height,
+            depth,
+        })
+    }
+
+    /// Writes the format `read` accepts, atomically.
+    pub fn write(&self, path: &Path) -> Result<()> {
+        crate::output::write_atomically(path, |w| {
+            use std::io::Write;
+            writeln!(w, "{DEPTH_MAGIC} {} {}", self.width, self.height)?;
+            for d in &self.depth {
+                w.write_all(&d.to_le_bytes())?;
+            }
+            Ok(())
+        })
+    }
+
+    fn at(&self, px: u32, py: u32) -> Option<f32> {
+        if px >= self.width || py >= self.height {
+            return None;
+        }
+        let d = self.depth[(py * self.width + px) as usize];
+        (d.is_finite() && d >= 0.0).then_some(d)
+    }
+}
+
+#[derive(Clone, Debug)]
+enum Geometry {
+    Sphere {
+        centre: [f64; 3],
+        radius: f64,
+        colour: [f32; 3],
+    },
+    Depth {
+        image: DepthImage,
+        colour: [f32; 3],
+    },
+}
+
+/// Clip planes, clip box and opaque geometry of a frame.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    planes: Vec<ClipPlane>,
+    clip_box: Option<([f32; 3], [f32; 3])>,
+    geometry: Option<Geometry>,
+}
+
+impl Scene {
+    /// The scene of a configuration (reads a depth file); None when nothing is set.
+    pub fn from_config(config: &HardwareConfig) -> Result<Option<Scene>> {
+        let clip = &config.clip;
+        let g = &config.geometry;
+        if clip.is_off() && g.is_off() {
+            return Ok(None);
+        }
+        let geometry = match g.shape {
+            GeometryShape::None => None,
+            GeometryShape::Sphere => Some(Geometry::Sphere {
+                centre: g.centre.map(|x| x as f64),
+                radius: g.radius as f64,
+                colour: g.colour,
+            }),
+            GeometryShape::DepthFile => Some(Geometry::Depth {
+                image: DepthImage::read(Path::new(&g.file))?,
+                colour: g.colour,
+            }),
+        };
+        Ok(Some(Scene {
+            planes: clip.planes.clone(),
+            clip_box: clip.box_corners(),
+            geometry,
+        }))
+    }
+
+    /// An error when a depth image does not match the rendered image's size.
+    pub fn check_image_size(&self, width: u32, height: u32) -> Result<()> {
+        if let Some(Geometry::Depth { image, .. }) = &self.geometry {
+            if (image.width, image.height) != (width, height) {
+                return Err(Error::config(
+                    "hardware configuration",
+                    "geometry.file",
+                    format!(
+                        "the depth image is {}x{}, the rendered image {width}x{height}; they must match",
+                        image.width, image.height
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The kept sample range and the surface of the ray through pixel (px, py).
+    pub fn limits(&self, ray: &Ray, px: u32, py: u32, spacing: f32) -> Limits {
+        let o = [0, 1, 2].map(|a| ray.origin[a] as f64);
+        let d = [0, 1, 2].map(|a| ray.dir[a] as f64);
+        let s = spacing as f64;
+        let (mut t_lo, mut t_hi) = (f64::NEG_INFINITY, f64::INFINITY);
+        let mut none = false;
+        for plane in &self.planes {
+            let n = plane.normal.map(|x| x as f64);
+            let num: f64 = (0..3).map(|a| (plane.point[a] as f64 - o[a]) * n[a]).sum();
+            let den: f64 = (0..3).map(|a| d[a] * n[a]).sum();
+            if den == 0.0 {
+                // Parallel: kept everywhere or nowhere ((o - p)·n >= 0 keeps).
+                none |= num > 0.0;
+            } else if den > 0.0 {
+                t_lo = t_lo.max(num / den);
+            } else {
+                t_hi = t_hi.min(num / den);
+            }
+        }
+        if let Some((lo, hi)) = self.clip_box {
+            for a in 0..3 {
+                let (l, h) = (lo[a] as f64, hi[a] as f64);
+                if d[a] == 0.0 {
+                    none |= o[a] < l || o[a] > h;
+                    continue;
+                }
+                let (mut ta, mut tb) = ((l - o[a]) / d[a], (h - o[a]) / d[a]);
+                if ta > tb {
+                    std::mem::swap(&mut ta, &mut tb);
+                }
+                t_lo = t_lo.max(ta);
+                t_hi = t_hi.min(tb);
+            }
+        }
+        // Samples at t = k·S with t_lo <= t <= t_hi.
+        let to_k = |x: f64| x.clamp(-1e15, 1e15) as i64;
+        let k_lo = to_k((t_lo / s).ceil());
+        let mut k_end = to_k((t_hi / s).floor()).saturating_add(1);
+        if none || t_lo > t_hi {
+            k_end = k_lo;
+        }
+        let mut surface = None;
+        if let Some((t_surface, colour)) = self.surface(ray, &o, &d, px, py) {
+            // Samples strictly in front of the surface: k·S < t.
+            k_end = k_end.min(to_k((t_surface / s).ceil()));
+            surface = Some(colour);
+        }
+        Limits {
+            k_lo,
+            k_end: k_end.max(k_lo),
+            surface,
+        }
+    }
+
+    /// The first opaque surface along the ray (t >= the near plane) and its colour.
+    fn surface(
+        &self,
+        ray: &Ray,
+        o: &[f64; 3],
+        d: &[f64; 3],
+        px: u32,
+        py: u32,
+    ) -> Option<(f64, SurfaceColour)> {
+        match self.geometry.as_ref()? {
+            Geometry::Sphere {
+                centre,
+                radius,
+                colour,
+            } => {
+                let oc = [0, 1, 2].map(|a| o[a] - centre[a]);
+                let b: f64 = (0..3).map(|a| oc[a] * d[a]).sum();
+                let c: f64 = (0..3).map(|a| oc[a] * oc[a]).sum::<f64>() - radius * radius;
+                let disc = b * b - c;
+                if disc < 0.0 {
+                    return None;
+                }
+                let root = disc.sqrt();
+                let (t0, t1) = (-b - root, -b + root);
+                let t_min = ray.t_min as f64;
+                if t1 < t_min {
+                    return None;
+                }
+                let t = t0.max(t_min);
+                // Headlight: ambient plus diffuse by the angle between normal and ray.
+                let normal = [0, 1, 2].map(|a| (o[a] + t * d[a] - centre[a]) / radius);
+                let cos = (0..3).map(|a| normal[a] * d[a]).sum::<f64>().abs().min(1.0);
+                let light = (0.25 + 0.75 * cos) as f32;
+                Some((
+                    t,
+                    [colour[0] * light, colour[1] * light, colour[2] * light, 1.0],
+                ))
+            }
+            Geometry::Depth { image, colour } => {
+                let t = image.at(px, py)? as f64;
+                Some((t, [colour[0], colour[1], colour[2], 1.0]))
+            }
+        }
+    }
+}
