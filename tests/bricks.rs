@@ -458,3 +458,60 @@ fn bad_input_gives_clear_errors() {
     let run = description(&volume, "class", Model::Float, "front", &["bricks.size=32"]);
     assert!(prepare(&run, &volume).is_err());
 }
+
+#[test]
+fn experiment_modes_for_bricks() {
+    use vizsim::experiment::spec::{expand, Mode};
+    let mode = Mode::parse("ert+bricks16+leap8").unwrap();
+    assert_eq!(
+        (mode.bricks, mode.subcube, mode.brick_table),
+        (16, 8, false)
+    );
+    assert_eq!(mode.name(), "ert+leap8+bricks16");
+    assert_eq!(Mode::parse(&mode.name()).unwrap(), mode);
+    assert!(Mode::parse("bricks8+table").unwrap().brick_table);
+    assert!(Mode::parse("table").is_err());
+    assert!(Mode::parse("bricks6").is_err());
+    // Without bricks a mode serialises as before (existing result lines unchanged).
+    let plain = serde_json::to_string(&Mode::parse("ert+leap8").unwrap()).unwrap();
+    assert!(!plain.contains("brick"), "{plain}");
+
+    let text = r#"
+name = "bricks-modes"
+datasets = ["phantom:sphere:16"]
+tf = ["class"]
+modes = ["ert", "ert+bricks8", "ert+bricks8+table", "ert+bricks32"]
+models = ["step"]
+[frames]
+orbit = 72
+select = [0]
+size = "16x16"
+"#;
+    let expansion = expand(text, "test", None).unwrap();
+    let configs: Vec<(usize, String)> = expansion
+        .runs
+        .iter()
+        .map(|r| {
+            (
+                r.run.hardware.bricks.size,
+                format!("{:?}", r.run.hardware.bricks.setup),
+            )
+        })
+        .collect();
+    assert_eq!(
+        configs,
+        vec![
+            (0, "Traversal".into()),
+            (8, "Traversal".into()),
+            (8, "Table".into())
+        ]
+    );
+    // bricks32 is larger than the 16³ volume: left out, with the reason.
+    assert_eq!(expansion.skipped.len(), 1);
+    assert!(expansion.skipped[0].reason.contains("brick"));
+    // Run keys: the run without bricks keeps the key it had before bricks existed (the
+    // configuration's serialisation has no bricks section).
+    let without = serde_json::to_string(&expansion.runs[0].run.hardware).unwrap();
+    assert!(!without.contains("bricks"));
+    assert_ne!(expansion.runs[1].key, expansion.runs[2].key);
+}

@@ -86,10 +86,24 @@ pub struct Mode {
     /// set, so existing results keep their form.
     #[serde(skip_serializing_if = "is_zero")]
     pub distance_bits: u32,
+    /// Bounding-brick edge (`bricksN`), 0 = none; `table`: start and end from a per-frame table
+    /// instead of the ray-setup traversal. Serialised only when set.
+    #[serde(skip_serializing_if = "is_zero_usize")]
+    pub bricks: usize,
+    #[serde(skip_serializing_if = "is_false")]
+    pub brick_table: bool,
 }
 
 fn is_zero(n: &u32) -> bool {
     *n == 0
+}
+
+fn is_zero_usize(n: &usize) -> bool {
+    *n == 0
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 impl Mode {
@@ -99,6 +113,8 @@ impl Mode {
             subcube: 0,
             hierarchy: false,
             distance_bits: 0,
+            bricks: 0,
+            brick_table: false,
         };
         if text == "none" {
             return Ok(mode);
@@ -119,6 +135,19 @@ impl Mode {
                     }
                     mode.distance_bits = n;
                 }
+                "table" => mode.brick_table = true,
+                t if t.starts_with("bricks") => {
+                    let n: usize = t[6..]
+                        .parse()
+                        .map_err(|_| format!("`{t}`: expected bricksN, N a brick edge"))?;
+                    if !config::BRICK_SIZES.contains(&n) {
+                        return Err(format!(
+                            "`{t}`: brick edge must be one of {:?}",
+                            config::BRICK_SIZES
+                        ));
+                    }
+                    mode.bricks = n;
+                }
                 t if t.starts_with("leap") => {
                     let n: usize = t[4..]
                         .parse()
@@ -132,7 +161,7 @@ impl Mode {
                 }
                 t => {
                     return Err(format!(
-                        "unknown token `{t}`; modes are `none` or `+`-joined `ert`, `leapN`, `hier`, `distanceN`"
+                        "unknown token `{t}`; modes are `none` or `+`-joined `ert`, `leapN`, `hier`, `distanceN`, `bricksN`, `table`"
                     ))
                 }
             }
@@ -142,6 +171,9 @@ impl Mode {
         }
         if mode.distance_bits > 0 && mode.subcube > 0 {
             return Err("`leapN` and `distanceN` are two leaping structures; choose one".into());
+        }
+        if mode.brick_table && mode.bricks == 0 {
+            return Err("`table` needs `bricksN`".into());
         }
         Ok(mode)
     }
@@ -160,6 +192,12 @@ impl Mode {
         }
         if self.distance_bits > 0 {
             parts.push(format!("distance{}", self.distance_bits));
+        }
+        if self.bricks > 0 {
+            parts.push(format!("bricks{}", self.bricks));
+        }
+        if self.brick_table {
+            parts.push("table".into());
         }
         if parts.is_empty() {
             "none".into()
@@ -227,13 +265,15 @@ pub struct Expansion {
 }
 
 /// Configuration fields a mode or the tf axis sets.
-const MODE_FIELDS: [&str; 6] = [
+const MODE_FIELDS: [&str; 8] = [
     "compositing.ert",
     "occupancy.subcube",
     "occupancy.hierarchy",
     "occupancy.kind",
     "occupancy.structure",
     "occupancy.distance_bits",
+    "bricks.size",
+    "bricks.setup",
 ];
 
 /// Reads and expands an experiment file.
@@ -487,6 +527,24 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
                             config.occupancy.distance_bits = mode.distance_bits;
                         } else {
                             config.occupancy.structure = config::LeapStructure::Map;
+                        }
+                        // Bricks: set here (like the distance volume), so a base file without
+                        // the section works and a run without bricks keeps its key.
+                        config.bricks.size = mode.bricks;
+                        if mode.bricks > 0 {
+                            config.bricks.setup = if mode.brick_table {
+                                config::BrickSetup::Table
+                            } else {
+                                config::BrickSetup::Traversal
+                            };
+                            if mode.bricks > *dims.iter().max().unwrap_or(&0) {
+                                skipped.push(Skipped {
+                                    dataset: name.clone(),
+                                    mode: mode.name(),
+                                    reason: format!("brick larger than the volume {dims:?}"),
+                                });
+                                continue;
+                            }
                         }
                         let mut fits = true;
                         if mode.subcube > 0 {
