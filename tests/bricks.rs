@@ -148,7 +148,7 @@ fn bricks_keep_the_image_bit_exact_with_perspective_and_shading() {
 }
 
 #[test]
-fn bricks_keep_the_image_bit_exact_on_fuel_and_neghip() {
+fn bricks_keep_the_image_bit_exact_on_fuel_neghip_and_aneurism() {
     let Some(dir) = common::data_dir() else {
         return;
     };
@@ -157,6 +157,10 @@ fn bricks_keep_the_image_bit_exact_on_fuel_and_neghip() {
         let cut = check_bricks_invisible(&volume, &["class", "zero"], &["orbit:5/72"], &[4, 8, 16]);
         assert!(cut > 0, "{name}: bricks cut nothing");
     }
+    // A 256³ view: the aneurism (very sparse), class classification.
+    let volume = vizsim::volume::dataset::load("aneurism", Some(&dir)).unwrap();
+    let cut = check_bricks_invisible(&volume, &["class"], &["orbit:13/72"], &[16]);
+    assert!(cut > 0, "aneurism: bricks cut nothing");
 }
 
 fn assert_cycle_equals_functional(
@@ -514,4 +518,51 @@ size = "16x16"
     let without = serde_json::to_string(&expansion.runs[0].run.hardware).unwrap();
     assert!(!without.contains("bricks"));
     assert_ne!(expansion.runs[1].key, expansion.runs[2].key);
+}
+
+#[test]
+fn render_and_sim_take_bricks_and_print_the_ray_range() {
+    let dir = scratch("cli");
+    for command in ["render", "sim"] {
+        let png = dir.join(format!("{command}.png"));
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_vizsim"))
+            .args([
+                command,
+                "--dataset",
+                "phantom:metaballs:32",
+                "--size",
+                "24x24",
+            ])
+            .args(["--bricks", "8", "--set", "bricks.setup=table"])
+            .args(["-o", png.to_str().unwrap()])
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(stdout.contains("ray start/end:"), "{stdout}");
+        assert_eq!(
+            stdout.contains("start/end table 2304 bytes"),
+            command == "sim",
+            "{stdout}"
+        );
+    }
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args([
+            "render",
+            "--dataset",
+            "phantom:metaballs:32",
+            "--size",
+            "24x24",
+            "--bricks",
+            "12",
+        ])
+        .args(["-o", dir.join("bad.png").to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("bricks.size"));
 }

@@ -191,6 +191,10 @@ pub struct HardwareArgs {
     /// Which occupancy map: '0' (`zero`) or `class`.
     #[arg(long, value_enum)]
     pub occupancy: Option<OccupancyArg>,
+    /// Bounding bricks of this edge (4..32): each ray starts at its first active brick and ends
+    /// after its last (the same as --set bricks.size=N; all three models).
+    #[arg(long)]
+    pub bricks: Option<usize>,
 }
 
 impl HardwareArgs {
@@ -206,6 +210,9 @@ impl HardwareArgs {
         }
         if let Some(kind) = self.occupancy {
             overrides.push(format!("occupancy.kind={}", kind.toml_name()));
+        }
+        if let Some(b) = self.bricks {
+            overrides.push(format!("bricks.size={b}"));
         }
         overrides.extend(extra.iter().cloned());
         let config = HardwareConfig::load(self.config.as_deref(), &overrides);
@@ -295,6 +302,26 @@ pub fn leaping_text(leaping: &vizsim::functional::renderer::Leaping) -> String {
             }
         ),
     }
+}
+
+/// The ray start and end figures as a user reads them (empty when the feature is off).
+pub fn ray_range_text(m: &vizsim::run::Measurements) -> String {
+    let Some(r) = &m.ray_range else {
+        return String::new();
+    };
+    let mut text = format!(
+        "ray start/end: {} of {} positions in the box cut ({:.1} %)",
+        r.positions_cut,
+        r.positions_in_box,
+        100.0 * r.positions_cut as f64 / r.positions_in_box.max(1) as f64
+    );
+    if let (Some(cycles), Some(bricks)) = (r.setup_cycles, r.bricks_visited) {
+        text += &format!("; traversal setup {cycles} cycles over {bricks} bricks visited");
+    }
+    if let (Some(bytes), Some(cycles)) = (r.table_bytes, r.table_load_cycles) {
+        text += &format!("; start/end table {bytes} bytes loaded in {cycles} cycles");
+    }
+    text
 }
 
 /// The command line as typed, for the provenance line of generated reports: `vizsim` and the

@@ -73,6 +73,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         report.samples_per_second / 1e6,
         args.output.display()
     );
+    if report.measurements.ray_range.is_some() {
+        println!("{}", super::ray_range_text(&report.measurements));
+    }
     if let Some(json) = &args.json {
         vizsim::output::write_json(json, &report)?;
     }

@@ -144,6 +144,9 @@ pub fn run(args: SimArgs) -> Result<()> {
         stalls.compositing_buffer_full,
         report.sim_cycles_per_second.unwrap_or_default() / 1e6
     );
+    if report.measurements.ray_range.is_some() {
+        println!("{}", super::ray_range_text(&report.measurements));
+    }
     if let Some(path) = &args.output {
         report.frame.write_png(path)?;
     }
