@@ -150,15 +150,21 @@ pub fn mode_label(mode: &str) -> String {
             t => parts.push(t.to_string()),
         }
     }
-    match (size, ert) {
-        (None, true) => "ERT".into(),
+    let base = match (size, ert) {
+        (None, true) => "ERT".to_string(),
         (None, false) if parts.is_empty() => "none".into(),
         (Some(s), e) => format!(
             "{}{s}³{}",
             if e { "" } else { "no ERT, " },
             if hierarchy { "+h" } else { "" }
         ),
-        _ => mode.to_string(),
+        _ => return mode.to_string(),
+    };
+    // Other tokens (distanceN, bricksN, table) keep their names, so modes stay distinct.
+    if parts.is_empty() {
+        base
+    } else {
+        format!("{base}+{}", parts.join("+"))
     }
 }
 

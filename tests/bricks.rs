@@ -476,6 +476,20 @@ fn experiment_modes_for_bricks() {
     assert!(Mode::parse("bricks8+table").unwrap().brick_table);
     assert!(Mode::parse("table").is_err());
     assert!(Mode::parse("bricks6").is_err());
+    // Tables and charts keep the modes apart.
+    use vizsim::tables::mode_label;
+    let labels: std::collections::BTreeSet<String> = [
+        "ert",
+        "ert+bricks8",
+        "ert+bricks8+table",
+        "ert+leap8",
+        "ert+leap8+bricks16",
+    ]
+    .iter()
+    .map(|m| mode_label(m))
+    .collect();
+    assert_eq!(labels.len(), 5, "{labels:?}");
+    assert_eq!(mode_label("ert+leap8"), "8³");
     // Without bricks a mode serialises as before (existing result lines unchanged).
     let plain = serde_json::to_string(&Mode::parse("ert+leap8").unwrap()).unwrap();
     assert!(!plain.contains("brick"), "{plain}");
