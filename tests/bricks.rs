@@ -580,3 +580,55 @@ fn render_and_sim_take_bricks_and_print_the_ray_range() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("bricks.size"));
 }
+
+#[test]
+fn jumping_over_dead_cycles_equals_ticking_with_a_slow_setup() {
+    use vizsim::arch::pipeline::simulate;
+    use vizsim::arch::voxel_memory::IdealMemory;
+    use vizsim::functional::renderer::{FixedRenderer, Leaping};
+    let volume = phantom("phantom:metaballs:32");
+    let tf = vizsim::transfer::resolve("class", &volume.name).unwrap();
+    let cam = common::camera(
+        &volume,
+        vizsim::camera::View::Orbit { k: 4, n: 72 },
+        vizsim::camera::Projection::Ortho,
+        24,
+    );
+    for setup in ["traversal", "table"] {
+        let s = format!("bricks.setup={setup}");
+        let config = config(&[
+            "bricks.size=8",
+            &s,
+            "bricks.setup_cycles_per_ray=9",
+            "bricks.setup_cycles_per_brick=3",
+        ]);
+        let renderer = FixedRenderer::new(
+            &volume,
+            &tf,
+            &vizsim::render::RenderSettings::default(),
+            &config,
+            Leaping::None,
+        )
+        .unwrap();
+        let sim = |skip_dead: bool| {
+            let mut memory = IdealMemory::new(20);
+            simulate(
+                &renderer,
+                &cam,
+                &renderer.skipper(),
+                &mut memory,
+                &config,
+                skip_dead,
+                None,
+            )
+            .unwrap()
+        };
+        let (jumped, ticked) = (sim(true), sim(false));
+        assert!(jumped.stats.skipped_cycles > 0, "{setup}");
+        let mut a = jumped.stats.clone();
+        a.skipped_cycles = 0;
+        assert_eq!(a, ticked.stats, "{setup}");
+        assert!(jumped.frame.pixels == ticked.frame.pixels);
+        assert!(ticked.stats.ray_range.is_some());
+    }
+}
