@@ -60,6 +60,9 @@ pub struct BricksConfig {
     pub table_entry_bytes: u32,
     /// Table: bytes per clock cycle the host link delivers.
     pub table_bytes_per_cycle: f64,
+    /// Traversal: ray-setup units working in parallel (each on one ray at a time; rays enter
+    /// the queue in pixel order).
+    pub setup_units: u32,
 }
 
 impl Default for BricksConfig {
@@ -71,6 +74,7 @@ impl Default for BricksConfig {
             setup_cycles_per_brick: 1,
             table_entry_bytes: 4,
             table_bytes_per_cycle: 1.0,
+            setup_units: 1,
         }
     }
 }

@@ -265,6 +265,27 @@ fn a_slow_traversal_setup_starves_the_ray_queue() {
         range(&slow).setup_cycles.unwrap(),
         40 * rays + 4 * range(&slow).bricks_visited.unwrap()
     );
+    // Eight setup units in parallel feed the queue eight times as fast: the frame is no longer
+    // bound by setup alone (but not faster than with a free setup).
+    let parallel = render(
+        &volume,
+        "class",
+        Model::Cycle,
+        "front",
+        &[
+            "bricks.size=8",
+            "bricks.setup_cycles_per_ray=40",
+            "bricks.setup_cycles_per_brick=4",
+            "bricks.setup_units=8",
+        ],
+    );
+    assert!(parallel.frame.pixels == slow.frame.pixels);
+    let parallel_cycles = parallel.measurements.cycles.unwrap();
+    assert!(
+        parallel_cycles * 2 < slow_cycles && parallel_cycles >= fast.measurements.cycles.unwrap(),
+        "8 units {parallel_cycles}, 1 unit {slow_cycles}"
+    );
+    assert!(empty(&parallel) < empty(&slow));
 }
 
 #[test]

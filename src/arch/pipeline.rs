@@ -210,8 +210,13 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
     let mut word_requests: VecDeque<(usize, [usize; 3])> = VecDeque::new();
     let mut waiting_words = 0usize;
     let mut next_setup = 0usize;
-    // The ray in the setup unit: (ray id, its setup, cycle it is ready).
-    let mut in_setup: Option<(usize, crate::functional::setup::FixedRay, u64)> = None;
+    // Rays in the setup units, in pixel order: (ray id, its setup, cycle it is ready).
+    let mut in_setup: VecDeque<(usize, crate::functional::setup::FixedRay, u64)> = VecDeque::new();
+    let setup_units = if config.bricks.is_off() {
+        1
+    } else {
+        config.bricks.setup_units as usize
+    };
     let mut retired = 0usize;
 
     let stage_latency = config.compositing.stage_latency as u64;
@@ -396,14 +401,12 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
         let stall = issued.err();
 
         // Ray setup: fill free slots; rays that miss the volume write the background at once.
-        // The setup unit works on one ray at a time; with `bricks.setup = "traversal"` a ray
-        // takes `setup_cycles` (per ray + per brick visited) before it can enter the queue, so
-        // a slow setup starves the queue (`ray_queue_empty`). Without it a ray is ready at once.
+        // With `bricks.setup = "traversal"` each of `bricks.setup_units` units works on one ray
+        // at a time, taking `setup_cycles` (per ray + per brick visited) before the ray may
+        // enter the queue (in pixel order), so a slow setup starves the queue
+        // (`ray_queue_empty`). Without it a ray is ready at once.
         for _ in 0..config.ray_queue.setups_per_cycle {
-            if in_setup.is_none() {
-                if next_setup >= ray_count {
-                    break;
-                }
+            while in_setup.len() < setup_units && next_setup < ray_count {
                 let ray_id = order[next_setup];
                 next_setup += 1;
                 let (px, py) = (ray_id as u32 % w, ray_id as u32 / w);
@@ -413,16 +416,16 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
                     r.setup_cycles = r.setup_cycles.map(|c| c + cost);
                     r.bricks_visited = r.bricks_visited.map(|b| b + ray.bricks_visited as u64);
                 }
-                in_setup = Some((ray_id, ray, now + cost));
+                in_setup.push_back((ray_id, ray, now + cost));
             }
-            let Some((ray_id, ray, ready)) = in_setup else {
+            let Some(&(ray_id, ray, ready)) = in_setup.front() else {
                 break;
             };
             if ready > now {
                 break;
             }
             let Some(free) = queue.free_slot() else { break };
-            in_setup = None;
+            in_setup.pop_front();
             moved = true;
             records[ray_id] = RayRecord {
                 hit: ray.samples > 0,
@@ -493,7 +496,10 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
                 memory.next_event(now),
                 stages.front().map(|s| s.due),
                 feedback.front().map(|&(due, _)| due),
-                in_setup.map(|(_, _, ready)| ready).filter(|&t| t > now),
+                in_setup
+                    .front()
+                    .map(|&(_, _, ready)| ready)
+                    .filter(|&t| t > now),
             ]
             .into_iter()
             .flatten()
