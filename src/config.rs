@@ -30,6 +30,14 @@ pub struct HardwareConfig {
     pub compositing: CompositingConfig,
     pub memory: MemoryConfig,
     pub sdram: SdramTiming,
+    /// Leap values in the volume (`occupancy.structure = "leap-values"`): how regions are
+    /// segmented and which are leapt. Written out only when not the default.
+    #[serde(default, skip_serializing_if = "LeapValuesConfig::is_default")]
+    pub leap_values: LeapValuesConfig,
+    /// The voxel word's fields when it carries leap values. Written out only when not the
+    /// default.
+    #[serde(default, skip_serializing_if = "VolumeWordConfig::is_default")]
+    pub volume_word: VolumeWordConfig,
     /// Bounding bricks: per-ray start and end (docs/model.md, "Ray start and end"). Written
     /// out only when on (`size` > 0), so existing run keys are unchanged.
     #[serde(default, skip_serializing_if = "BricksConfig::is_off")]
@@ -292,6 +300,9 @@ pub enum LeapStructure {
     Map,
     /// The distance volume: one distance word per voxel in SDRAM, read at every step.
     Distance,
+    /// Leap values in the voxel words themselves (`[leap_values]`, `[volume_word]`): a sample
+    /// whose nearest voxel is a leap voxel leaps by the value its word holds.
+    LeapValues,
 }
 
 impl LeapStructure {
@@ -309,6 +320,77 @@ fn default_distance_bits() -> u32 {
 
 fn is_default_distance_bits(bits: &u32) -> bool {
     *bits == default_distance_bits()
+}
+
+/// Which segmented regions get leap voxels (docs/model.md, "Leap values in the volume").
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize,
+)]
+#[serde(rename_all = "kebab-case")]
+pub enum LeapRegions {
+    /// Only regions whose whole value range classifies to zero opacity; densities are kept,
+    /// so the image equals the non-leaping image bit for bit.
+    #[default]
+    Empty,
+    /// Every region: region voxels hold their region's mean, rays composite the mean over a
+    /// leap with opacity 1 - (1 - a)^L and sample regions nearest-neighbour. Lossy by design.
+    Homogeneous,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LeapValuesConfig {
+    /// "empty" (lossless) or "homogeneous" (lossy).
+    pub regions: LeapRegions,
+    /// Region criterion: |value - seed value| <= range_fraction · the voxel type's maximum.
+    pub range_fraction: f64,
+    /// Regions with fewer voxels are dissolved (their voxels belong to no region).
+    pub min_region_size: u64,
+    /// The largest sample spacing the guards must cover, in voxels; 0 = the run's spacing.
+    pub max_spacing: f32,
+}
+
+impl Default for LeapValuesConfig {
+    fn default() -> Self {
+        LeapValuesConfig {
+            regions: LeapRegions::Empty,
+            range_fraction: 0.03,
+            min_region_size: 64,
+            max_spacing: 0.0,
+        }
+    }
+}
+
+impl LeapValuesConfig {
+    pub fn is_default(&self) -> bool {
+        *self == LeapValuesConfig::default()
+    }
+}
+
+/// The voxel word when it carries leap values (`src/leapvalues/word.rs`): flag (MSB), leap
+/// value, unused bits, density.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct VolumeWordConfig {
+    pub word_bits: u32,
+    pub density_bits: u32,
+    pub leap_bits: u32,
+}
+
+impl Default for VolumeWordConfig {
+    fn default() -> Self {
+        VolumeWordConfig {
+            word_bits: 32,
+            density_bits: 16,
+            leap_bits: 15,
+        }
+    }
+}
+
+impl VolumeWordConfig {
+    pub fn is_default(&self) -> bool {
+        *self == VolumeWordConfig::default()
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -416,8 +498,14 @@ impl HardwareConfig {
             }
             out
         };
+        // The default as written in its file: sections the serialisation leaves out when they
+        // are at their defaults ([leap_values]...) are there too, field by field.
+        let mut default_fields = Vec::new();
+        if let Ok(table) = DEFAULT_TOML.parse::<toml::Table>() {
+            flatten("", &table, &mut default_fields);
+        }
         let default: std::collections::BTreeMap<String, toml::Value> =
-            fields(&Self::default_config()).into_iter().collect();
+            default_fields.into_iter().collect();
         fields(self)
             .into_iter()
             .filter(|(path, value)| default.get(path) != Some(value))
@@ -528,14 +616,43 @@ impl HardwareConfig {
                 ),
             ));
         }
-        if o.structure == LeapStructure::Distance && o.hierarchy {
+        if o.structure != LeapStructure::Map && o.hierarchy {
             return Err(Error::config(
                 source,
                 "occupancy.hierarchy",
-                "true needs occupancy.structure = \"map\"; the distance volume has no hierarchy"
+                "true needs occupancy.structure = \"map\"; only the occupancy map has a \
+                 hierarchy"
                     .to_string(),
             ));
         }
+        let lv = &self.leap_values;
+        if !(lv.range_fraction.is_finite() && (0.0..=1.0).contains(&lv.range_fraction)) {
+            return Err(Error::config(
+                source,
+                "leap_values.range_fraction",
+                format!(
+                    "{} is out of range; allowed 0..=1 (a fraction of the voxel type's maximum)",
+                    lv.range_fraction
+                ),
+            ));
+        }
+        range(
+            "leap_values.min_region_size",
+            lv.min_region_size,
+            1,
+            1 << 40,
+        )?;
+        let m = lv.max_spacing;
+        if !(m == 0.0 || (m.is_finite() && (1.0 / 64.0..=16.0).contains(&m))) {
+            return Err(Error::config(
+                source,
+                "leap_values.max_spacing",
+                format!("{m} is out of range; allowed 0 (the run's spacing) or 1/64..=16 voxels"),
+            ));
+        }
+        let w = &self.volume_word;
+        crate::leapvalues::VolumeWord::new(w.word_bits, w.density_bits, w.leap_bits)
+            .map_err(|e| e.with_source(source))?;
         range(
             "interpolation.weight_bits",
             self.interpolation.weight_bits as u64,

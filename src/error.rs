@@ -58,4 +58,13 @@ impl Error {
             message: message.into(),
         }
     }
+
+    /// A configuration error re-attributed to the file it was read from (other errors as
+    /// they are).
+    pub fn with_source(self, source: &str) -> Self {
+        match self {
+            Error::Config { field, message, .. } => Error::config(source, field, message),
+            other => other,
+        }
+    }
 }

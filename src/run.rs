@@ -20,9 +20,10 @@ use crate::arch::trace::Waveform;
 use crate::arch::voxel_memory::{IdealMemory, VoxelMemory};
 use crate::bricks::RayRangeStats;
 use crate::camera::{check_image_size, Camera, Projection, View};
-use crate::config::{HardwareConfig, RaySelection};
+use crate::config::{HardwareConfig, LeapRegions, RaySelection};
 use crate::error::{Error, Result};
 use crate::functional::renderer::{FixedRenderer, Leaping};
+use crate::leapvalues::{LeapValueStats, LeapValueVolume};
 use crate::render::float::FloatRenderer;
 use crate::render::{Frame, FrameStats, RenderSettings};
 use crate::transfer;
@@ -144,11 +145,20 @@ impl RunDescription {
         Ok(())
     }
 
-    /// The leaping a model runs: none for the float reference, the configuration's otherwise.
+    /// The leaping a model runs: the configuration's for the fixed-point models; for the
+    /// float reference only homogeneous leap values, the one structure that changes the image
+    /// (every other one only skips zero-opacity samples).
     pub fn leaping(&self) -> Leaping {
-        match self.model {
-            Model::Float => Leaping::None,
-            Model::Step | Model::Cycle => Leaping::from_config(&self.hardware),
+        match (self.model, Leaping::from_config(&self.hardware)) {
+            (
+                Model::Float,
+                l @ Leaping::LeapValues {
+                    regions: LeapRegions::Homogeneous,
+                    ..
+                },
+            ) => l,
+            (Model::Float, _) => Leaping::None,
+            (Model::Step | Model::Cycle, l) => l,
         }
     }
 
@@ -164,9 +174,9 @@ impl RunDescription {
     }
 }
 
+/// Both boxed: each holds its tables and, when configured, a leaping structure.
 enum Renderer<'v> {
-    Float(FloatRenderer<'v>),
-    /// Boxed: it holds the tables and the occupancy map, the float renderer only a table.
+    Float(Box<FloatRenderer<'v>>),
     Fixed(Box<FixedRenderer<'v>>),
 }
 
@@ -186,6 +196,14 @@ impl<'v> Prepared<'v> {
             Renderer::Float(_) => None,
         }
     }
+
+    /// Leap values in the volume: what preprocessing found.
+    pub fn leap_value_stats(&self) -> Option<LeapValueStats> {
+        match &self.renderer {
+            Renderer::Fixed(r) => r.leap_values.as_ref().map(|l| l.stats),
+            Renderer::Float(r) => r.leap_value_stats(),
+        }
+    }
 }
 
 /// Validates `run` and prepares it on `volume` (which must be the run's dataset).
@@ -194,9 +212,21 @@ pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<
     let tf = transfer::resolve(&run.tf, &volume.name)?;
     let settings = run.settings();
     let renderer = match run.model {
-        Model::Float => Renderer::Float(
-            FloatRenderer::new(volume, &tf, &settings)?.with_ray_range(&run.hardware)?,
-        ),
+        Model::Float => {
+            let mut renderer = FloatRenderer::new(volume, &tf, &settings)?;
+            if let Leaping::LeapValues { .. } = run.leaping() {
+                // Homogeneous: every region leaps, whatever the transfer function.
+                let words = LeapValueVolume::build(
+                    volume,
+                    &run.hardware.leap_values,
+                    &run.hardware.volume_word,
+                    settings.sample_spacing,
+                    |_, _| true,
+                )?;
+                renderer = renderer.with_leap_values(words);
+            }
+            Renderer::Float(Box::new(renderer.with_ray_range(&run.hardware)?))
+        }
         Model::Step | Model::Cycle => {
             if run.model == Model::Cycle && run.memory == Memory::Sdram {
                 let distance = matches!(run.leaping(), Leaping::Distance { .. });
@@ -274,6 +304,9 @@ pub struct Measurements {
     /// Leaping: empty sub-cubes of the occupancy map, percent.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub skippable_subcubes_percent: Option<f64>,
+    /// Leap values in the volume: voxels whose word carries a leap value.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub leap_voxels: Option<u64>,
     /// Ray start and end (`[bricks]`, `[clip]`, `[geometry]`): positions before and after,
     /// and (cycle model) the setup's cycles or the start/end table; absent when all are off.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -307,6 +340,10 @@ pub struct RunReport {
     /// Cycle model: simulated cycles per wall-clock second of this frame.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sim_cycles_per_second: Option<f64>,
+    /// Leap values in the volume: what preprocessing found and its wall time (steps 1–4, done
+    /// once per prepared run).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub leap_values: Option<LeapValueStats>,
     #[serde(skip)]
     pub frame: Frame,
 }
@@ -403,6 +440,8 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         m.skippable_subcubes_percent =
             Some(100.0 * map.empty_subcubes() as f64 / map.subcubes().max(1) as f64);
     }
+    let leap_values = prepared.leap_value_stats();
+    m.leap_voxels = leap_values.map(|s| s.leap_voxels);
     Ok(RunReport {
         run: run.clone(),
         volume: prepared.volume.name.clone(),
@@ -415,6 +454,7 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         wall_seconds,
         samples_per_second: m.samples as f64 / wall_seconds.max(1e-12),
         sim_cycles_per_second: m.cycles.map(|c| c as f64 / wall_seconds.max(1e-12)),
+        leap_values,
         measurements: m,
         frame,
     })

@@ -738,13 +738,13 @@ fn the_word_layout_is_validated_field_by_field() {
     VolumeWord::new(16, 8, 7).unwrap();
     VolumeWord::new(32, 8, 1).unwrap();
     for ((w, d, l), field) in [
-        ((32, 16, 0), "leap_values.leap_bits"),
-        ((32, 16, 16), "leap_values.leap_bits"),
-        ((16, 8, 8), "leap_values.leap_bits"),
-        ((33, 16, 15), "leap_values.word_bits"),
-        ((1, 1, 1), "leap_values.word_bits"),
-        ((32, 0, 15), "leap_values.density_bits"),
-        ((32, 17, 10), "leap_values.density_bits"),
+        ((32, 16, 0), "volume_word.leap_bits"),
+        ((32, 16, 16), "volume_word.leap_bits"),
+        ((16, 8, 8), "volume_word.leap_bits"),
+        ((33, 16, 15), "volume_word.word_bits"),
+        ((1, 1, 1), "volume_word.word_bits"),
+        ((32, 0, 15), "volume_word.density_bits"),
+        ((32, 17, 10), "volume_word.density_bits"),
     ] {
         assert_eq!(
             config_field(VolumeWord::new(w, d, l).unwrap_err()),
@@ -819,7 +819,7 @@ fn encoding_rejects_a_density_field_too_narrow_for_the_volume() {
         },
     )
     .unwrap_err();
-    assert_eq!(config_field(e), "leap_values.density_bits");
+    assert_eq!(config_field(e), "volume_word.density_bits");
     // Mismatched pieces are an error, not a panic.
     let small = volume([4, 4, 4], |_, _, _| 1);
     let other = volume([5, 4, 4], |_, _, _| 1);

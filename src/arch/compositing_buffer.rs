@@ -7,11 +7,15 @@
 
 use std::collections::VecDeque;
 
+use crate::functional::leaping::SampleValue;
+
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BufferedSample {
     pub ray_id: usize,
     pub k: u64,
     pub pos: [i64; 3],
+    /// What the sample composites (the strategy's decision at issue).
+    pub value: SampleValue,
     pub arrived: bool,
 }
 
@@ -58,12 +62,19 @@ impl CompositingBuffer {
         self.free.last().copied()
     }
 
-    pub fn reserve(&mut self, ray_id: usize, k: u64, pos: [i64; 3]) -> Option<u32> {
+    pub fn reserve(
+        &mut self,
+        ray_id: usize,
+        k: u64,
+        pos: [i64; 3],
+        value: SampleValue,
+    ) -> Option<u32> {
         let id = self.free.pop()?;
         self.entries[id as usize] = BufferedSample {
             ray_id,
             k,
             pos,
+            value,
             arrived: false,
         };
         let queue = &mut self.per_ray[ray_id];

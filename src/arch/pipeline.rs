@@ -32,7 +32,7 @@ use crate::camera::Camera;
 use crate::config::HardwareConfig;
 use crate::error::{Error, Result};
 use crate::functional::arith::Accumulator;
-use crate::functional::leaping::SpaceSkipper;
+use crate::functional::leaping::{SampleValue, SkipState, SpaceSkipper};
 use crate::functional::renderer::FixedRenderer;
 use crate::render::{Frame, RayRecord};
 
@@ -51,6 +51,10 @@ pub struct StallCycles {
     /// memory (distance-volume leaping only; not written out when 0).
     #[serde(skip_serializing_if = "is_zero")]
     pub distance_word: u64,
+    /// Every ray in the queue is busy and at least one waits for its last sample's words to
+    /// learn how far it goes (leap values in the volume only; not written out when 0).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub leap_word: u64,
 }
 
 fn is_zero(n: &u64) -> bool {
@@ -123,6 +127,7 @@ struct StagedSample {
     ray_id: usize,
     k: u64,
     pos: [i64; 3],
+    value: SampleValue,
 }
 
 /// How a simulation runs and what it records besides its result.
@@ -209,6 +214,11 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
     // at its current position may issue; the slot stays busy until the word is back.
     let mut word_requests: VecDeque<(usize, [usize; 3])> = VecDeque::new();
     let mut waiting_words = 0usize;
+    // Leap values: per compositing-buffer tag, the position update of a step whose advance
+    // comes from that sample's words; it enters the skip unit when they are back.
+    let mut held_updates: Vec<Option<PositionUpdate>> =
+        vec![None; config.compositing.buffer_capacity];
+    let mut waiting_samples = 0usize;
     let mut next_setup = 0usize;
     // Rays in the setup units, in pixel order: (ray id, its setup, cycle it is ready).
     let mut in_setup: VecDeque<(usize, crate::functional::setup::FixedRay, u64)> = VecDeque::new();
@@ -272,12 +282,14 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
             if p.terminated {
                 stats.discarded_after_ert += 1;
             } else {
-                let rgba = renderer.classify(s.pos, p.light);
+                let rgba = renderer.classify_value(s.pos, s.value, p.light);
                 stats.composited += 1;
-                if compositor.composite(&mut p.acc, rgba) {
+                let steps = s.value.steps();
+                if compositor.composite_steps(&mut p.acc, rgba, steps as u32) {
                     p.terminated = true;
-                    // As in the functional model: early if positions remained after this one.
-                    records[s.ray_id].terminated_early = s.k + 1 < p.positions as u64;
+                    // As in the functional model: early if positions remained after those
+                    // this sample stands for.
+                    records[s.ray_id].terminated_early = s.k + steps < p.positions as u64;
                     feedback.push_back((now + feedback_latency, s.ray_id));
                     ert_event = true;
                 }
@@ -299,6 +311,7 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
                 ray_id: s.ray_id,
                 k: s.k,
                 pos: s.pos,
+                value: s.value,
             });
             moved = true;
         }
@@ -324,6 +337,11 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
                 waiting_words -= 1;
                 leaving_candidates.push(index);
                 continue;
+            }
+            // Leap values: the words tell how far the ray goes; its update may now be computed.
+            if let Some(update) = held_updates[tag as usize].take() {
+                skip.push(update, now);
+                waiting_samples -= 1;
             }
             buffer.arrive(tag as u32);
         }
@@ -395,6 +413,8 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
             &mut records,
             &mut stats,
             now,
+            &mut held_updates,
+            &mut waiting_samples,
             waiting_words > 0,
         );
         moved |= issued.is_ok();
@@ -465,6 +485,7 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
                     terminated: false,
                     admitted: now,
                     samples_issued: 0,
+                    state: SkipState::default(),
                 },
             );
         }
@@ -530,6 +551,7 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
                 Stall::Memory => stats.stall_cycles.memory += span,
                 Stall::BufferFull => stats.stall_cycles.compositing_buffer_full += span,
                 Stall::DistanceWord => stats.stall_cycles.distance_word += span,
+                Stall::LeapWord => stats.stall_cycles.leap_word += span,
             }
         }
         stats.ray_queue_occupancy[queue.occupancy()] += span;
@@ -594,6 +616,7 @@ enum Stall {
     Memory,
     BufferFull,
     DistanceWord,
+    LeapWord,
 }
 
 /// What the issue stage did in a cycle.
@@ -616,6 +639,8 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
     records: &mut [RayRecord],
     stats: &mut CycleStats,
     now: u64,
+    held_updates: &mut [Option<PositionUpdate>],
+    waiting_samples: &mut usize,
     waiting_words: bool,
 ) -> std::result::Result<Issued, Stall> {
     if queue.occupancy() == 0 {
@@ -624,6 +649,8 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
     let Some(index) = queue.select(|_| true) else {
         return Err(if waiting_words {
             Stall::DistanceWord
+        } else if *waiting_samples > 0 {
+            Stall::LeapWord
         } else {
             Stall::SkipBusy
         });
@@ -631,8 +658,13 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
     let slot = queue.slot_mut(index).expect("selected slot");
     let remaining = slot.ray.samples as u64 - slot.k;
     let ray_id = slot.ray_id;
-    // The same step the functional model takes at this position (sample or not, advance).
-    let step = skipper.decide(slot.pos, &slot.ray).within(remaining);
+    // The same step the functional model takes at this position (sample or not, advance);
+    // the ray's state changes only if the step issues.
+    let mut state = slot.state;
+    let step = skipper
+        .decide(slot.pos, &slot.ray, &mut state)
+        .within(remaining);
+    let mut held_tag = None;
     if step.sample {
         if buffer.is_full() {
             return Err(Stall::BufferFull);
@@ -646,10 +678,12 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
         if !memory.try_push(request, now) {
             return Err(Stall::Memory);
         }
-        let id = buffer.reserve(slot.ray_id, slot.k, slot.pos);
+        let id = buffer.reserve(slot.ray_id, slot.k, slot.pos, step.value);
         debug_assert_eq!(id, Some(tag));
         slot.samples_issued += 1;
+        held_tag = step.waits_for_words.then_some(tag);
     }
+    slot.state = state;
     step.record(&mut records[slot.ray_id]);
     stats.samples += step.sample as u64;
     stats.leaps += !step.sample as u64;
@@ -662,14 +696,19 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
     );
     stats.steps += 1;
     slot.busy = true;
-    skip.push(
-        PositionUpdate {
-            slot: index,
-            pos: new_pos,
-            k: new_k,
-        },
-        now,
-    );
+    let update = PositionUpdate {
+        slot: index,
+        pos: new_pos,
+        k: new_k,
+    };
+    match held_tag {
+        // The advance is in the sample's words: the update waits for them.
+        Some(tag) => {
+            held_updates[tag as usize] = Some(update);
+            *waiting_samples += 1;
+        }
+        None => skip.push(update, now),
+    }
     queue.issued_from(index);
     Ok(Issued {
         ray_id,

@@ -3,6 +3,7 @@
 //! ray termination only through the delayed feedback from the compositing stage.
 
 use crate::config::RaySelection;
+use crate::functional::leaping::SkipState;
 use crate::functional::setup::FixedRay;
 
 #[derive(Clone, Debug)]
@@ -20,6 +21,8 @@ pub struct RaySlot {
     pub admitted: u64,
     /// Samples issued so far (the compositing side needs the total to retire the ray).
     pub samples_issued: u32,
+    /// The space-skipping strategy's per-ray state as of the ray's next step.
+    pub state: SkipState,
 }
 
 impl RaySlot {

@@ -301,6 +301,17 @@ pub fn leaping_text(leaping: &vizsim::functional::renderer::Leaping) -> String {
                 OccupancyKind::Class => "class",
             }
         ),
+        Leaping::LeapValues { regions, kind } => format!(
+            "leap values in the volume ({} regions, {} test)",
+            match regions {
+                vizsim::config::LeapRegions::Empty => "empty",
+                vizsim::config::LeapRegions::Homogeneous => "homogeneous",
+            },
+            match kind {
+                OccupancyKind::Zero => "'0'",
+                OccupancyKind::Class => "class",
+            }
+        ),
     }
 }
 

@@ -124,7 +124,7 @@ pub fn run(args: SimArgs) -> Result<()> {
     println!(
         "{}: {} cycles = {:.3} ms/frame = {:.1} fps at {} MHz; {}, {} ray selection, ERT {}; \
          {} steps ({} samples of which {} leap samples, {} leaps), {} discarded after ERT{memory_line}; \
-         stalls: queue empty {}, skip busy {}, memory {}, buffer full {}; {:.1} M cycles/s simulated",
+         stalls: queue empty {}, skip busy {}, memory {}, buffer full {}{}; {:.1} M cycles/s simulated",
         report.volume,
         cycles,
         frame_time_ns / 1e6,
@@ -142,6 +142,7 @@ pub fn run(args: SimArgs) -> Result<()> {
         stalls.skip_unit_busy,
         stalls.memory,
         stalls.compositing_buffer_full,
+        volume_word_stalls(&stalls),
         report.sim_cycles_per_second.unwrap_or_default() / 1e6
     );
     if report.measurements.ray_range.is_some() {
@@ -154,4 +155,16 @@ pub fn run(args: SimArgs) -> Result<()> {
         vizsim::output::write_json(path, &report)?;
     }
     Ok(())
+}
+
+/// Stalls on words from volume memory, shown only for the structures that have them.
+fn volume_word_stalls(stalls: &vizsim::arch::pipeline::StallCycles) -> String {
+    let mut text = String::new();
+    if stalls.distance_word > 0 {
+        text += &format!(", distance word {}", stalls.distance_word);
+    }
+    if stalls.leap_word > 0 {
+        text += &format!(", leap word {}", stalls.leap_word);
+    }
+    text
 }

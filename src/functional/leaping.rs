@@ -5,11 +5,43 @@
 //! strategy (bounding bricks, leap values in the volume...) touches neither.
 
 use super::setup::FixedRay;
+use crate::config::LeapRegions;
 use crate::config::SkipPolicy;
 use crate::leapvalues::distance::{distance_steps, DistanceVolume};
+use crate::leapvalues::LeapValueVolume;
 use crate::occupancy::OccupancyMap;
 use crate::render::RayRecord;
 use crate::skip::{leap_steps, SkipWidths};
+
+/// What a sample composites.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SampleValue {
+    /// The density interpolated trilinearly at the sample's position.
+    #[default]
+    Interpolated,
+    /// A region's value (nearest-neighbour or a leap over a homogeneous region), composited
+    /// over `steps` sample positions: opacity 1 - (1 - a)^steps (leap values, homogeneous).
+    Region { density: u16, steps: u32 },
+}
+
+impl SampleValue {
+    /// Sample positions the value stands for.
+    #[inline(always)]
+    pub fn steps(self) -> u64 {
+        match self {
+            SampleValue::Interpolated => 1,
+            SampleValue::Region { steps, .. } => steps as u64,
+        }
+    }
+}
+
+/// Per-ray state a strategy may keep between steps (leap values: trilinear mode, or region
+/// mode with the region's value). The other strategies keep none.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SkipState {
+    /// Region mode M(m): Some(m); trilinear mode T: None.
+    pub region: Option<u16>,
+}
 
 /// One issue slot of a ray: sample or not, then advance. Every step costs one slot, whatever
 /// it does; a leap that follows a sample costs no extra slot.
@@ -19,6 +51,11 @@ pub struct Step {
     pub sample: bool,
     /// Positions to advance (>= 1): the ray's next position is P + advance·V.
     pub advance: u64,
+    /// What the sample composites.
+    pub value: SampleValue,
+    /// The advance is read from this sample's own words (leap values): in the cycle model the
+    /// ray may not issue again until they are back from memory.
+    pub waits_for_words: bool,
 }
 
 impl Step {
@@ -26,6 +63,8 @@ impl Step {
     pub const SAMPLE: Step = Step {
         sample: true,
         advance: 1,
+        value: SampleValue::Interpolated,
+        waits_for_words: false,
     };
 
     /// The step at a position in an empty sub-cube whose leap is `n` >= 1 positions: the skip
@@ -36,15 +75,24 @@ impl Step {
         Step {
             sample: policy == SkipPolicy::SampleThenLeap,
             advance: n.max(1),
+            ..Step::SAMPLE
         }
     }
 
     /// The step limited to the ray's `remaining` (>= 1) positions: a leap past the ray's last
-    /// position simply ends the ray.
+    /// position simply ends the ray (and a region value covers no position past it).
     #[inline(always)]
     pub fn within(self, remaining: u64) -> Step {
+        let value = match self.value {
+            SampleValue::Region { density, steps } => SampleValue::Region {
+                density,
+                steps: steps.min(remaining.min(u32::MAX as u64) as u32),
+            },
+            v => v,
+        };
         Step {
             advance: self.advance.min(remaining),
+            value,
             ..self
         }
     }
@@ -73,8 +121,9 @@ impl Step {
 }
 
 pub trait SpaceSkipper: Sync {
-    /// The step at position `pos` of `ray` (not yet limited to the ray's remaining positions).
-    fn decide(&self, pos: [i64; 3], ray: &FixedRay) -> Step;
+    /// The step at position `pos` of `ray` (not yet limited to the ray's remaining positions),
+    /// updating the ray's `state` (which starts at `SkipState::default()`).
+    fn decide(&self, pos: [i64; 3], ray: &FixedRay, state: &mut SkipState) -> Step;
 
     /// The voxel whose word in volume memory the decision at `pos` reads, when the strategy's
     /// structure lives in volume memory (the distance volume); None when it is on chip. The
@@ -90,7 +139,7 @@ pub struct NoSkipping;
 
 impl SpaceSkipper for NoSkipping {
     #[inline(always)]
-    fn decide(&self, _: [i64; 3], _: &FixedRay) -> Step {
+    fn decide(&self, _: [i64; 3], _: &FixedRay, _: &mut SkipState) -> Step {
         Step::SAMPLE
     }
 }
@@ -126,7 +175,7 @@ impl<'a> OccupancyLeaping<'a> {
 
 impl SpaceSkipper for OccupancyLeaping<'_> {
     #[inline(always)]
-    fn decide(&self, pos: [i64; 3], ray: &FixedRay) -> Step {
+    fn decide(&self, pos: [i64; 3], ray: &FixedRay, _: &mut SkipState) -> Step {
         let cube = pos.map(|p| (p >> self.shift) as usize);
         if self.map.occupied(cube) {
             return Step::SAMPLE;
@@ -185,7 +234,7 @@ impl<'a> DistanceLeaping<'a> {
 
 impl SpaceSkipper for DistanceLeaping<'_> {
     #[inline(always)]
-    fn decide(&self, pos: [i64; 3], _: &FixedRay) -> Step {
+    fn decide(&self, pos: [i64; 3], _: &FixedRay, _: &mut SkipState) -> Step {
         let n = self.steps[self.volume.distance(self.base_voxel(pos)) as usize];
         if n == 0 {
             Step::SAMPLE
@@ -200,21 +249,121 @@ impl SpaceSkipper for DistanceLeaping<'_> {
     }
 }
 
+/// Leap values in the volume (Frey & Ertl; docs/model.md, "Leap values in the volume"). The
+/// decision reads the sample's own words, so every step that may leap waits for them.
+///
+/// - Empty-region leaping: every step samples (trilinearly, as without leaping); when the
+///   nearest voxel n(P) is a leap voxel with value L >= 1, the ray then advances L positions.
+/// - Homogeneous leaping (protocol R of docs/leapvalues.md): in trilinear mode T the sample is
+///   interpolated and the ray enters region mode M(m) when n(P) is flagged (m = its density
+///   field) or the cell's eight words are identical and unflagged (m = their density). In
+///   M(m), n(P)'s word w decides: flagged with L: composite w's density over k = max(L, 1)
+///   positions and advance k; unflagged with density m: composite m, advance 1; anything else:
+///   back to T, processing this sample there.
+pub struct LeapValueLeaping<'a> {
+    volume: &'a LeapValueVolume,
+    pos_frac_bits: u32,
+}
+
+impl<'a> LeapValueLeaping<'a> {
+    pub fn new(volume: &'a LeapValueVolume, pos_frac_bits: u32) -> Self {
+        LeapValueLeaping {
+            volume,
+            pos_frac_bits,
+        }
+    }
+
+    /// The word of the voxel nearest to `pos` (round half up, clamped into the volume): one of
+    /// the eight words the sample reads.
+    #[inline(always)]
+    fn nearest_word(&self, pos: [i64; 3]) -> u32 {
+        let (pf, d) = (self.pos_frac_bits, self.volume.dims);
+        let half = 1i64 << (pf - 1);
+        let v = [0, 1, 2].map(|a| (((pos[a] + half) >> pf).max(0) as usize).min(d[a] - 1));
+        self.volume.words[self.volume.index(v)]
+    }
+
+    /// Trilinear mode T: the interpolated sample, and whether the ray enters region mode.
+    #[inline(always)]
+    fn trilinear(&self, pos: [i64; 3], state: &mut SkipState) -> Step {
+        let layout = &self.volume.layout;
+        let nearest = layout.decode(self.nearest_word(pos));
+        state.region = if nearest.leap.is_some() {
+            Some(nearest.density)
+        } else {
+            let (pf, d) = (self.pos_frac_bits, self.volume.dims);
+            let base = [0, 1, 2].map(|a| ((pos[a] >> pf) as usize).min(d[a] - 2));
+            let first = self.volume.words[self.volume.index(base)];
+            let same = (0..8).all(|c| {
+                let v = [
+                    base[0] + (c & 1),
+                    base[1] + ((c >> 1) & 1),
+                    base[2] + (c >> 2),
+                ];
+                self.volume.words[self.volume.index(v)] == first
+            });
+            // `nearest` is one of the eight: identical words are all unflagged.
+            same.then_some(nearest.density)
+        };
+        Step::SAMPLE
+    }
+}
+
+impl SpaceSkipper for LeapValueLeaping<'_> {
+    #[inline(always)]
+    fn decide(&self, pos: [i64; 3], _: &FixedRay, state: &mut SkipState) -> Step {
+        let word = self.volume.layout.decode(self.nearest_word(pos));
+        match self.volume.regions {
+            LeapRegions::Empty => Step {
+                advance: word.leap.unwrap_or(1).max(1) as u64,
+                waits_for_words: true,
+                ..Step::SAMPLE
+            },
+            LeapRegions::Homogeneous => {
+                let Some(m) = state.region else {
+                    return self.trilinear(pos, state);
+                };
+                let (density, steps) = match word.leap {
+                    Some(l) => (word.density, l.max(1)),
+                    None if word.density == m => (m, 1),
+                    None => {
+                        // Rule (c): this sample is processed in T; the step was issued in M,
+                        // so it still waited for its words.
+                        return Step {
+                            waits_for_words: true,
+                            ..self.trilinear(pos, state)
+                        };
+                    }
+                };
+                state.region = Some(density);
+                Step {
+                    sample: true,
+                    advance: steps as u64,
+                    value: SampleValue::Region { density, steps },
+                    waits_for_words: true,
+                }
+            }
+        }
+    }
+}
+
 /// The strategy a hardware configuration selects, as one type (so callers need no dispatch of
 /// their own). New strategies are added here and in `FixedRenderer::skipper`.
 pub enum ConfiguredSkipper<'a> {
     None(NoSkipping),
     Occupancy(OccupancyLeaping<'a>),
     Distance(DistanceLeaping<'a>),
+    LeapValues(LeapValueLeaping<'a>),
 }
 
 impl SpaceSkipper for ConfiguredSkipper<'_> {
     #[inline(always)]
-    fn decide(&self, pos: [i64; 3], ray: &FixedRay) -> Step {
+    fn decide(&self, pos: [i64; 3], ray: &FixedRay, state: &mut SkipState) -> Step {
         match self {
-            ConfiguredSkipper::None(s) => s.decide(pos, ray),
-            ConfiguredSkipper::Occupancy(s) => s.decide(pos, ray),
-            ConfiguredSkipper::Distance(s) => s.decide(pos, ray),
+            ConfiguredSkipper::None(s) => s.decide(pos, ray, state),
+            ConfiguredSkipper::Occupancy(s) => s.decide(pos, ray, state),
+            ConfiguredSkipper::Distance(s) => s.decide(pos, ray, state),
+            ConfiguredSkipper::LeapValues(s) => s.decide(pos, ray, state),
         }
     }
 

@@ -4,16 +4,20 @@
 //! each); the published cost is one step per 12.5 ns (`clock.step_time_ns`).
 
 use super::arith::{interpolate, Accumulator, ClassificationTable, Compositor, Neighbourhood};
+use std::borrow::Cow;
+
 use super::leaping::{
-    ConfiguredSkipper, DistanceLeaping, NoSkipping, OccupancyLeaping, SpaceSkipper,
+    ConfiguredSkipper, DistanceLeaping, LeapValueLeaping, NoSkipping, OccupancyLeaping,
+    SampleValue, SkipState, SpaceSkipper,
 };
 use super::setup::{check_widths, setup_ray, FixedRay};
 use super::Widths;
 use crate::bricks::FixedRange;
 use crate::camera::Camera;
-use crate::config::{HardwareConfig, LeapStructure, SkipPolicy};
+use crate::config::{HardwareConfig, LeapRegions, LeapStructure, SkipPolicy};
 use crate::error::Result;
 use crate::leapvalues::distance::{distance_volume, DistanceVolume};
+use crate::leapvalues::LeapValueVolume;
 use crate::occupancy::{check_subcube_size, OccupancyKind, OccupancyMap};
 use crate::render::{render_frame, Frame, RayRecord, RenderSettings};
 use crate::shading::{phong_fixed, GradientVolume};
@@ -34,6 +38,11 @@ pub enum Leaping {
         bits: u32,
         kind: OccupancyKind,
     },
+    /// Leap values in the voxel words (`occupancy.structure = "leap-values"`).
+    LeapValues {
+        regions: LeapRegions,
+        kind: OccupancyKind,
+    },
 }
 
 impl Leaping {
@@ -42,6 +51,11 @@ impl Leaping {
         if o.structure == LeapStructure::Distance {
             Leaping::Distance {
                 bits: o.distance_bits,
+                kind: o.kind,
+            }
+        } else if o.structure == LeapStructure::LeapValues {
+            Leaping::LeapValues {
+                regions: config.leap_values.regions,
                 kind: o.kind,
             }
         } else if o.subcube == 0 {
@@ -57,7 +71,8 @@ impl Leaping {
 }
 
 pub struct FixedRenderer<'a> {
-    volume: &'a Volume,
+    /// The volume sampled: the dataset, or with homogeneous leap values its density fields.
+    volume: Cow<'a, Volume>,
     pub widths: Widths,
     pub table: ClassificationTable,
     pub compositor: Compositor,
@@ -68,6 +83,8 @@ pub struct FixedRenderer<'a> {
     pub map: Option<OccupancyMap>,
     /// The distance volume, with `Leaping::Distance`.
     pub distance: Option<DistanceVolume>,
+    /// The voxel words with leap values, with `Leaping::LeapValues`.
+    pub leap_values: Option<LeapValueVolume>,
     /// Per-voxel quantised gradients, present when shading.
     pub gradients: Option<GradientVolume>,
     /// Ray start and end (`[bricks]`, `[clip]`, `[geometry]`); None when all are off.
@@ -100,7 +117,7 @@ impl<'a> FixedRenderer<'a> {
             settings.background,
         );
         let map = match leaping {
-            Leaping::None | Leaping::Distance { .. } => None,
+            Leaping::None | Leaping::Distance { .. } | Leaping::LeapValues { .. } => None,
             Leaping::Occupancy {
                 subcube,
                 hierarchy,
@@ -128,11 +145,35 @@ impl<'a> FixedRenderer<'a> {
             }
             _ => None,
         };
+        let leap_values = match leaping {
+            Leaping::LeapValues { regions, kind } => Some(LeapValueVolume::build(
+                volume,
+                &crate::config::LeapValuesConfig {
+                    regions,
+                    ..config.leap_values.clone()
+                },
+                &config.volume_word,
+                settings.sample_spacing,
+                |lo, hi| match kind {
+                    OccupancyKind::Zero => hi > 0,
+                    OccupancyKind::Class => table.any_visible(lo, hi),
+                },
+            )?),
+            _ => None,
+        };
+        // Homogeneous leap values replace region voxels by their means: the renderer samples
+        // those density fields (the dataset itself otherwise).
+        let volume = match leap_values.as_ref().and_then(|l| l.densities.clone()) {
+            Some(densities) => Cow::Owned(densities),
+            None => Cow::Borrowed(volume),
+        };
         let gradients = settings
             .shading
-            .then(|| GradientVolume::build(volume, config.shading.gradient_bits));
+            .then(|| GradientVolume::build(&volume, config.shading.gradient_bits));
+        // Bricks are built from the volume the renderer samples (the density fields with
+        // homogeneous leap values).
         let ray_range = FixedRange::from_config(
-            volume,
+            &volume,
             config,
             &table,
             widths.position_frac_bits,
@@ -142,6 +183,7 @@ impl<'a> FixedRenderer<'a> {
             ray_range,
             gradients,
             volume,
+            leap_values,
             widths,
             table,
             compositor,
@@ -159,14 +201,18 @@ impl<'a> FixedRenderer<'a> {
             (Some(map), Leaping::Occupancy { hierarchy, .. }) => ConfiguredSkipper::Occupancy(
                 OccupancyLeaping::new(map, hierarchy, self.skip_policy, self.widths.skip()),
             ),
-            _ => match &self.distance {
-                Some(distance) => ConfiguredSkipper::Distance(DistanceLeaping::new(
+            _ => match (&self.distance, &self.leap_values) {
+                (Some(distance), _) => ConfiguredSkipper::Distance(DistanceLeaping::new(
                     distance,
                     self.settings.sample_spacing,
                     self.skip_policy,
                     self.widths.position_frac_bits,
                 )),
-                None => ConfiguredSkipper::None(NoSkipping),
+                (None, Some(words)) => ConfiguredSkipper::LeapValues(LeapValueLeaping::new(
+                    words,
+                    self.widths.position_frac_bits,
+                )),
+                (None, None) => ConfiguredSkipper::None(NoSkipping),
             },
         }
     }
@@ -214,8 +260,19 @@ impl<'a> FixedRenderer<'a> {
     /// The classified (and, when shading, shaded) sample at a position of a ray.
     #[inline(always)]
     pub fn classify(&self, pos: [i64; 3], light: [i32; 3]) -> [u16; 4] {
+        self.classify_value(pos, SampleValue::Interpolated, light)
+    }
+
+    /// The classified (and, when shading, shaded) sample of a value at a position: the
+    /// interpolated density or a region's value. Shading uses the gradient interpolated at the
+    /// position either way.
+    #[inline(always)]
+    pub fn classify_value(&self, pos: [i64; 3], value: SampleValue, light: [i32; 3]) -> [u16; 4] {
         let (pf, wb) = (self.widths.position_frac_bits, self.widths.weight_bits);
-        let density = interpolate(self.volume, pos, pf, wb);
+        let density = match value {
+            SampleValue::Interpolated => interpolate(&self.volume, pos, pf, wb),
+            SampleValue::Region { density, .. } => density,
+        };
         let rgba = self.table.lookup(density);
         match &self.gradients {
             Some(gradients) if rgba[3] != 0 => {
@@ -237,19 +294,23 @@ impl<'a> FixedRenderer<'a> {
             ..RayRecord::default()
         };
         let mut acc = Accumulator::default();
+        let mut state = SkipState::default();
         let mut pos = ray.start;
         let mut k: u64 = 0;
         let n = ray.samples as u64;
         while k < n {
-            let step = skipper.decide(pos, ray).within(n - k);
+            let step = skipper.decide(pos, ray, &mut state).within(n - k);
             step.record(&mut record);
             if step.sample
-                && self
-                    .compositor
-                    .composite(&mut acc, self.classify(pos, ray.light))
+                && self.compositor.composite_steps(
+                    &mut acc,
+                    self.classify_value(pos, step.value, ray.light),
+                    step.value.steps() as u32,
+                )
             {
-                // Early when positions remained after this one (as the cycle model counts).
-                record.terminated_early = k + 1 < n;
+                // Early when positions remained after those this sample stands for (as the
+                // cycle model counts).
+                record.terminated_early = k + step.value.steps() < n;
                 break;
             }
             k += step.advance;

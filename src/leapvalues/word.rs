@@ -55,7 +55,7 @@ impl VolumeWord {
     /// Validates the layout: word 2..=32 bits, density 1..=16 bits, leap >= 1 bit, and
     /// density + flag + leap <= word. Errors name the field.
     pub fn new(word_bits: u32, density_bits: u32, leap_bits: u32) -> Result<VolumeWord> {
-        let field = |name: &str| format!("leap_values.{name}");
+        let field = |name: &str| format!("volume_word.{name}");
         if !(2..=32).contains(&word_bits) {
             return Err(Error::config(
                 LAYOUT_SOURCE,
@@ -130,7 +130,7 @@ impl VolumeWord {
         if volume.bits as u32 > self.density_bits {
             return Err(Error::config(
                 LAYOUT_SOURCE,
-                "leap_values.density_bits",
+                "volume_word.density_bits",
                 format!(
                     "{} bits cannot hold the {}-bit volume `{}`",
                     self.density_bits, volume.bits, volume.name

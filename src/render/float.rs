@@ -10,26 +10,34 @@
 //! Each pixel is computed independently, so the image is bit-identical whatever the number of
 //! rayon threads.
 
+use std::borrow::Cow;
+
 use glam::{Vec3A, Vec4};
 
 use super::{clip_to_box, render_frame, sample_range, Frame, RayRecord, RenderSettings};
 use crate::bricks::FloatRange;
 use crate::camera::{Camera, Ray};
-use crate::config::HardwareConfig;
+use crate::config::{HardwareConfig, LeapRegions};
 use crate::error::Result;
+use crate::leapvalues::LeapValueVolume;
 use crate::shading::{phong_float, voxel_gradient};
 use crate::transfer::{correct_opacity, TransferFunction};
 use crate::volume::Volume;
 
 /// Everything a ray needs, prepared once per frame.
 pub struct FloatRenderer<'a> {
-    volume: &'a Volume,
+    /// The volume sampled: the dataset, or with homogeneous leap values its density fields.
+    volume: Cow<'a, Volume>,
     /// Transfer function at every integer density, plus one extra copy of the last entry so
     /// that interpolation at the top density needs no branch.
     table: Vec<Vec4>,
     settings: RenderSettings,
     /// Ray start and end (bricks, clipping, geometry); None when off.
     ray_range: Option<Box<FloatRange>>,
+    /// Homogeneous leap values: the ray follows the same region protocol as the fixed-point
+    /// model (lossy by design). Empty-region leaping only skips zero-opacity samples, so the
+    /// reference does not need it.
+    leap_values: Option<LeapValueVolume>,
 }
 
 impl<'a> FloatRenderer<'a> {
@@ -47,17 +55,37 @@ impl<'a> FloatRenderer<'a> {
             .collect();
         table.push(table[entries - 1]);
         Ok(FloatRenderer {
-            volume,
+            volume: Cow::Borrowed(volume),
             table,
             settings: settings.clone(),
             ray_range: None,
+            leap_values: None,
         })
     }
 
-    /// Adds the configuration's ray start and end (`[bricks]`, `[clip]`, `[geometry]`).
+    /// Adds the configuration's ray start and end (`[bricks]`, `[clip]`, `[geometry]`); after
+    /// `with_leap_values`, so that bricks see the densities the reference samples.
     pub fn with_ray_range(mut self, config: &HardwareConfig) -> Result<Self> {
-        self.ray_range = FloatRange::from_config(self.volume, config, &self.table)?.map(Box::new);
+        self.ray_range = FloatRange::from_config(&self.volume, config, &self.table)?.map(Box::new);
         Ok(self)
+    }
+
+    /// The reference with homogeneous leap values (`leap_values.regions = "homogeneous"`):
+    /// it samples the density fields and follows the region protocol of the fixed-point model
+    /// (docs/model.md). Other leap-value volumes are ignored: they change no image.
+    pub fn with_leap_values(mut self, leap_values: LeapValueVolume) -> Self {
+        if leap_values.regions == LeapRegions::Homogeneous {
+            if let Some(densities) = leap_values.densities.clone() {
+                self.volume = Cow::Owned(densities);
+            }
+            self.leap_values = Some(leap_values);
+        }
+        self
+    }
+
+    /// Homogeneous leap values: what preprocessing found.
+    pub fn leap_value_stats(&self) -> Option<crate::leapvalues::LeapValueStats> {
+        self.leap_values.as_ref().map(|l| l.stats)
     }
 
     pub fn render(&self, camera: &Camera) -> Frame {
@@ -94,6 +122,10 @@ impl<'a> FloatRenderer<'a> {
             record.end_sample = end;
             record.hit = end > first;
             let threshold = self.settings.ert_threshold.unwrap_or(f32::INFINITY);
+            if let Some(words) = &self.leap_values {
+                self.march_regions(ray, words, first, end, &mut acc, &mut record);
+                return self.finish(acc, record, ray, pixel, surface);
+            }
             for k in first..end {
                 let p = ray.origin + ray.dir * (k as f32 * s);
                 let rgba = self.classify(p, ray.dir);
@@ -110,6 +142,19 @@ impl<'a> FloatRenderer<'a> {
                 }
             }
         }
+        self.finish(acc, record, ray, pixel, surface)
+    }
+
+    /// The pixel: the opaque surface (geometry) or the background composited behind the
+    /// accumulated colour.
+    fn finish(
+        &self,
+        acc: Vec4,
+        record: RayRecord,
+        ray: &Ray,
+        pixel: (u32, u32),
+        mut surface: Option<[f32; 4]>,
+    ) -> ([u8; 4], RayRecord) {
         if let (None, Some(scene)) = (surface, self.ray_range.as_ref().and_then(|r| r.scene())) {
             // A ray that misses the volume (or has no sample in it) still meets the geometry.
             surface = scene
@@ -124,10 +169,95 @@ impl<'a> FloatRenderer<'a> {
         )
     }
 
+    /// Samples k in first..end with homogeneous leap values: the fixed-point model's region
+    /// protocol (`functional::leaping::LeapValueLeaping`) on float positions. A region value
+    /// standing for j positions composites with opacity 1 - (1 - a_S)^j.
+    fn march_regions(
+        &self,
+        ray: &Ray,
+        words: &LeapValueVolume,
+        first: i64,
+        end: i64,
+        acc: &mut Vec4,
+        record: &mut RayRecord,
+    ) {
+        let s = self.settings.sample_spacing;
+        let threshold = self.settings.ert_threshold.unwrap_or(f32::INFINITY);
+        let d = words.dims;
+        let word_at = |v: [usize; 3]| words.layout.decode(words.words[words.index(v)]);
+        let mut region: Option<u16> = None;
+        let mut k = first;
+        while k < end {
+            let p = ray.origin + ray.dir * (k as f32 * s);
+            let nearest = [0, 1, 2].map(|a| {
+                let x = p[a].clamp(0.0, (d[a] - 1) as f32);
+                ((x + 0.5).floor() as usize).min(d[a] - 1)
+            });
+            let w = word_at(nearest);
+            let in_region = match (region, w.leap) {
+                (Some(_), Some(l)) => Some((w.density, l.max(1))),
+                (Some(m), None) if w.density == m => Some((m, 1)),
+                _ => None,
+            };
+            let (rgba, steps) = match in_region {
+                Some((m, steps)) => {
+                    region = Some(m);
+                    (self.classify_density(m as f32, p, ray.dir), steps)
+                }
+                None => {
+                    // Trilinear mode: enter region mode at a flagged nearest word or eight
+                    // identical unflagged words.
+                    region = if w.leap.is_some() {
+                        Some(w.density)
+                    } else {
+                        let base = [0, 1, 2]
+                            .map(|a| (p[a].clamp(0.0, (d[a] - 1) as f32) as usize).min(d[a] - 2));
+                        let first_word = words.words[words.index(base)];
+                        (0..8)
+                            .all(|c| {
+                                let v = [
+                                    base[0] + (c & 1),
+                                    base[1] + ((c >> 1) & 1),
+                                    base[2] + (c >> 2),
+                                ];
+                                words.words[words.index(v)] == first_word
+                            })
+                            .then_some(w.density)
+                    };
+                    (self.classify(p, ray.dir), 1)
+                }
+            };
+            let steps = (steps as i64).min(end - k);
+            record.samples += 1;
+            record.skipped += steps as u32 - 1;
+            let a = if s == 1.0 {
+                rgba.w
+            } else {
+                correct_opacity(rgba.w, s)
+            };
+            let a = if steps > 1 {
+                1.0 - (1.0 - a).powi(steps as i32)
+            } else {
+                a
+            };
+            *acc += (1.0 - acc.w) * a * rgba.truncate().extend(1.0);
+            if acc.w >= threshold {
+                record.terminated_early = k + steps < end;
+                break;
+            }
+            k += steps;
+        }
+    }
+
     /// Colour and per-voxel opacity of the sample at `p` (voxel space, inside the box).
     #[inline(always)]
     fn classify(&self, p: Vec3A, dir: Vec3A) -> Vec4 {
-        let v = self.interpolate(p);
+        self.classify_density(self.interpolate(p), p, dir)
+    }
+
+    /// Colour and per-voxel opacity of density `v` at `p`; shading uses the gradient at `p`.
+    #[inline(always)]
+    fn classify_density(&self, v: f32, p: Vec3A, dir: Vec3A) -> Vec4 {
         let i = v as usize; // v >= 0: truncation is floor
         let f = v - i as f32;
         let (a, b) = (self.table[i], self.table[i + 1]);
@@ -193,7 +323,7 @@ impl<'a> FloatRenderer<'a> {
                 })
                 .product();
             let v = voxel_gradient(
-                self.volume,
+                &self.volume,
                 base[0] + offset[0],
                 base[1] + offset[1],
                 base[2] + offset[2],

@@ -1,0 +1,135 @@
+//! The leap-value volume a renderer reads: steps 1–4 run for a hardware configuration and a
+//! transfer function, reduced to what the ray loop needs (the words, and for homogeneous
+//! leaping the density fields as a volume). docs/model.md, "Leap values in the volume".
+
+use std::time::Duration;
+
+use super::VolumeWord;
+use super::{preprocess, range_from_fraction, LeapValueParams, SegmentationParams, VoxelClass};
+use crate::config::{LeapRegions, LeapValuesConfig, VolumeWordConfig};
+use crate::error::Result;
+use crate::volume::Volume;
+
+/// The words of a volume with leap values, ready for the ray loop.
+#[derive(Clone, Debug)]
+pub struct LeapValueVolume {
+    pub regions: LeapRegions,
+    pub layout: VolumeWord,
+    pub dims: [usize; 3],
+    /// One word per voxel, x fastest.
+    pub words: Vec<u32>,
+    /// Homogeneous leaping: the density fields (region voxels hold their region's mean), the
+    /// volume the renderer interpolates. None for empty-region leaping (densities unchanged).
+    pub densities: Option<Volume>,
+    pub stats: LeapValueStats,
+}
+
+/// What preprocessing produced and what it cost.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct LeapValueStats {
+    /// Segmentation range in density units.
+    pub range: u16,
+    /// The guard distance in voxels.
+    pub guard_voxels: u32,
+    /// Regions kept by the segmentation.
+    pub regions: usize,
+    /// Regions that got leap voxels (all of them for homogeneous leaping; the ones that
+    /// classify to zero opacity for empty-region leaping).
+    pub leap_regions: usize,
+    /// Voxels whose word is flagged.
+    pub leap_voxels: u64,
+    /// Mean leap value over the flagged voxels, in sample steps.
+    pub mean_leap: f64,
+    /// Steps 1–4 and the reduction, in seconds.
+    pub preprocessing_seconds: f64,
+}
+
+impl LeapValueVolume {
+    /// Runs steps 1–4 on `volume` for a run with sample spacing `spacing`. `visible(lo, hi)` is
+    /// the transfer function's conservative test over a value range (the occupancy map's); it
+    /// decides which regions are empty.
+    pub fn build(
+        volume: &Volume,
+        config: &LeapValuesConfig,
+        word: &VolumeWordConfig,
+        spacing: f32,
+        visible: impl Fn(u16, u16) -> bool,
+    ) -> Result<LeapValueVolume> {
+        let layout = VolumeWord::new(word.word_bits, word.density_bits, word.leap_bits)?;
+        let range = range_from_fraction(config.range_fraction, volume)?;
+        let max_spacing = if config.max_spacing == 0.0 {
+            spacing
+        } else {
+            config.max_spacing
+        };
+        let params = LeapValueParams {
+            segmentation: SegmentationParams {
+                range,
+                min_region_size: config.min_region_size,
+            },
+            max_spacing,
+            spacing,
+            layout,
+        };
+        let started = std::time::Instant::now();
+        let pre = preprocess(volume, &params)?;
+        let regions = pre.segmentation.regions.len();
+        let (words, densities, leap_regions) = match config.regions {
+            LeapRegions::Homogeneous => {
+                let densities = pre.encoded.density_volume(volume)?;
+                (pre.encoded.words, Some(densities), regions)
+            }
+            LeapRegions::Empty => {
+                // Only regions whose whole range is invisible keep their leap voxels, and every
+                // voxel keeps its own density: leaps pass only zero-opacity samples.
+                let empty: Vec<bool> = pre
+                    .segmentation
+                    .regions
+                    .iter()
+                    .map(|r| !visible(r.min, r.max))
+                    .collect();
+                let mut words = Vec::with_capacity(volume.data.len());
+                for (i, &density) in volume.data.iter().enumerate() {
+                    let label = pre.segmentation.labels[i] as usize;
+                    let leap = (pre.classification.classes[i] == VoxelClass::Leap
+                        && label >= 1
+                        && empty[label - 1])
+                        .then(|| pre.leap_values.values[i]);
+                    words.push(layout.encode(density, leap)?);
+                }
+                (words, None, empty.iter().filter(|&&e| e).count())
+            }
+        };
+        let (mut flagged, mut sum) = (0u64, 0u64);
+        for &w in &words {
+            if let Some(l) = layout.decode(w).leap {
+                flagged += 1;
+                sum += l as u64;
+            }
+        }
+        let elapsed = started.elapsed();
+        Ok(LeapValueVolume {
+            regions: config.regions,
+            layout,
+            dims: volume.dims,
+            words,
+            densities,
+            stats: LeapValueStats {
+                range,
+                guard_voxels: pre.classification.guard.voxels(),
+                regions,
+                leap_regions,
+                leap_voxels: flagged,
+                mean_leap: sum as f64 / flagged.max(1) as f64,
+                preprocessing_seconds: Duration::as_secs_f64(&elapsed),
+            },
+        })
+    }
+
+    /// The index of the voxel nearest to a position given per axis in voxels (already
+    /// rounded), x fastest.
+    #[inline(always)]
+    pub fn index(&self, voxel: [usize; 3]) -> usize {
+        voxel[0] + self.dims[0] * (voxel[1] + self.dims[1] * voxel[2])
+    }
+}
