@@ -653,3 +653,26 @@ fn jumping_over_dead_cycles_equals_ticking_with_a_slow_setup() {
         assert!(ticked.stats.ray_range.is_some());
     }
 }
+
+#[test]
+fn bricks_keep_the_image_bit_exact_with_leap_values_in_the_volume() {
+    let volume = phantom("phantom:metaballs:64");
+    for regions in ["empty", "homogeneous"] {
+        let r = format!("leap_values.regions={regions}");
+        let base = ["occupancy.structure=leap-values", r.as_str()];
+        for model in [Model::Float, Model::Step] {
+            let plain = render(&volume, "class", model, "orbit:2/72", &base);
+            let mut sets = base.to_vec();
+            sets.push("bricks.size=8");
+            let with = render(&volume, "class", model, "orbit:2/72", &sets);
+            assert!(
+                plain.frame.pixels == with.frame.pixels,
+                "{regions} {model:?}"
+            );
+            assert!(range(&with).positions_cut > 0);
+        }
+        let mut sets = base.to_vec();
+        sets.push("bricks.size=8");
+        assert_cycle_equals_functional(&volume, "class", "orbit:2/72", &sets);
+    }
+}
