@@ -9,8 +9,8 @@
 //! - **Clip box** (`[clip] box_min`, `box_max`): a sample is kept inside [min, max].
 //! - **Opaque geometry** (`[geometry]`): per pixel the ray parameter t of the first opaque
 //!   surface; samples with t >= that depth are not taken, and the surface's colour (opaque)
-//!   replaces the background behind the volume. Shapes: an analytic sphere (lit by the
-//!   headlight), or a depth image file (below) with one colour.
+//!   replaces the background behind the volume. Shapes: an analytic sphere or capped cylinder
+//!   "pointer" (lit by the headlight), or a depth image file (below) with one colour.
 //!
 //! **Depth file format** (`geometry.shape = "depth-file"`): the ASCII line `VIZDEPTH W H\n`
 //! (W, H the image size in pixels, which must equal the rendered image's), then W·H
@@ -118,6 +118,14 @@ enum Geometry {
         radius: f64,
         colour: [f32; 3],
     },
+    Cylinder {
+        base: [f64; 3],
+        /// Unit axis from `base`, and the length along it.
+        axis: [f64; 3],
+        length: f64,
+        radius: f64,
+        colour: [f32; 3],
+    },
     Depth {
         image: DepthImage,
         colour: [f32; 3],
@@ -147,6 +155,18 @@ impl Scene {
                 radius: g.radius as f64,
                 colour: g.colour,
             }),
+            GeometryShape::Cylinder => {
+                let base = g.centre.map(|x| x as f64);
+                let a = [0, 1, 2].map(|i| g.end[i] as f64 - base[i]);
+                let length = dot(&a, &a).sqrt();
+                Some(Geometry::Cylinder {
+                    base,
+                    axis: a.map(|x| x / length),
+                    length,
+                    radius: g.radius as f64,
+                    colour: g.colour,
+                })
+            }
             GeometryShape::DepthFile => Some(Geometry::Depth {
                 image: DepthImage::read(Path::new(&g.file))?,
                 colour: g.colour,
@@ -269,10 +289,89 @@ impl Scene {
                     [colour[0] * light, colour[1] * light, colour[2] * light, 1.0],
                 ))
             }
+            Geometry::Cylinder {
+                base,
+                axis,
+                length,
+                radius,
+                colour,
+            } => {
+                let (t, normal) =
+                    cylinder_hit(o, d, ray.t_min as f64, base, axis, *length, *radius)?;
+                Some((t, lit(*colour, &normal, d)))
+            }
             Geometry::Depth { image, colour } => {
                 let t = image.at(px, py)? as f64;
                 Some((t, [colour[0], colour[1], colour[2], 1.0]))
             }
         }
     }
+}
+
+fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Headlight: ambient plus diffuse by the angle between the unit normal and the ray.
+fn lit(colour: [f32; 3], normal: &[f64; 3], d: &[f64; 3]) -> SurfaceColour {
+    let light = (0.25 + 0.75 * dot(normal, d).abs().min(1.0)) as f32;
+    [colour[0] * light, colour[1] * light, colour[2] * light, 1.0]
+}
+
+/// The first t >= t_min where the ray o + t·d (d unit) meets the capped cylinder of the given
+/// base point, unit axis, length and radius, and the unit normal there. A ray starting inside
+/// meets it at t_min. Candidates: the two roots of the side (the radial part w + t·v of the
+/// ray, with w, v the components of o - base and d normal to the axis, has length r) within
+/// the axial range [0, length], and the two cap planes within the radius.
+fn cylinder_hit(
+    o: &[f64; 3],
+    d: &[f64; 3],
+    t_min: f64,
+    base: &[f64; 3],
+    axis: &[f64; 3],
+    length: f64,
+    radius: f64,
+) -> Option<(f64, [f64; 3])> {
+    let oc = [0, 1, 2].map(|i| o[i] - base[i]);
+    let (oc_a, d_a) = (dot(&oc, axis), dot(d, axis));
+    let w = [0, 1, 2].map(|i| oc[i] - oc_a * axis[i]);
+    let v = [0, 1, 2].map(|i| d[i] - d_a * axis[i]);
+    let inside = |t: f64| {
+        let s = oc_a + t * d_a;
+        let r = [0, 1, 2].map(|i| w[i] + t * v[i]);
+        (0.0..=length).contains(&s) && dot(&r, &r) <= radius * radius
+    };
+    if inside(t_min) {
+        return Some((t_min, d.map(|x| -x)));
+    }
+    let mut best: Option<(f64, [f64; 3])> = None;
+    let mut consider = |t: f64, normal: [f64; 3]| {
+        if t >= t_min && best.is_none_or(|(b, _)| t < b) {
+            best = Some((t, normal));
+        }
+    };
+    let a = dot(&v, &v);
+    if a > 1e-12 {
+        let b = dot(&w, &v);
+        let disc = b * b - a * (dot(&w, &w) - radius * radius);
+        if disc >= 0.0 {
+            let root = disc.sqrt();
+            for t in [(-b - root) / a, (-b + root) / a] {
+                let s = oc_a + t * d_a;
+                if (0.0..=length).contains(&s) {
+                    consider(t, [0, 1, 2].map(|i| (w[i] + t * v[i]) / radius));
+                }
+            }
+        }
+    }
+    if d_a.abs() > 1e-12 {
+        for (s, sign) in [(0.0, -1.0), (length, 1.0)] {
+            let t = (s - oc_a) / d_a;
+            let r = [0, 1, 2].map(|i| w[i] + t * v[i]);
+            if dot(&r, &r) <= radius * radius {
+                consider(t, axis.map(|x| sign * x));
+            }
+        }
+    }
+    best
 }

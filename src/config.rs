@@ -146,15 +146,19 @@ pub struct ClipPlane {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GeometryConfig {
-    /// "none", "sphere" (analytic: `centre`, `radius`) or "depth-file" (`file`).
+    /// "none", "sphere" (analytic: `centre`, `radius`), "cylinder" (a capped "pointer" from
+    /// `centre` to `end`, `radius`) or "depth-file" (`file`).
     pub shape: GeometryShape,
-    /// Sphere centre and radius, voxel coordinates.
+    /// Sphere centre (cylinder: one end) and radius, voxel coordinates.
     pub centre: [f32; 3],
     pub radius: f32,
     /// Surface colour (RGB 0..=1); the sphere is lit by the headlight.
     pub colour: [f32; 3],
     /// Depth image (docs/model.md, "Depth file format"); must match the image size.
     pub file: String,
+    /// Cylinder: the other end of its axis (voxel coordinates).
+    #[serde(default)]
+    pub end: [f32; 3],
 }
 
 impl Default for GeometryConfig {
@@ -165,6 +169,7 @@ impl Default for GeometryConfig {
             radius: 1.0,
             colour: [1.0, 1.0, 1.0],
             file: String::new(),
+            end: [0.0; 3],
         }
     }
 }
@@ -181,6 +186,7 @@ pub enum GeometryShape {
     #[default]
     None,
     Sphere,
+    Cylinder,
     DepthFile,
 }
 
@@ -807,6 +813,14 @@ impl HardwareConfig {
                 format!("{:?}: each component allowed 0..=1", g.colour),
             ));
         }
+        finite("geometry.end".into(), &g.end)?;
+        if g.shape == GeometryShape::Cylinder && g.end == g.centre {
+            return Err(Error::config(
+                source,
+                "geometry.end",
+                "equals geometry.centre; a cylinder needs an axis of non-zero length",
+            ));
+        }
         if g.shape == GeometryShape::DepthFile && g.file.is_empty() {
             return Err(Error::config(
                 source,
@@ -819,15 +833,25 @@ impl HardwareConfig {
 }
 
 /// Adds the optional sections (`[bricks]`, `[clip]`, `[geometry]`) with their defaults where a
-/// table lacks them (they are not written out when off).
+/// table lacks them, and their missing fields (they are not written out when off).
 fn insert_default_sections(table: &mut toml::Table) {
     for (name, default) in [
         ("bricks", toml::Table::try_from(BricksConfig::default())),
         ("clip", toml::Table::try_from(ClipConfig::default())),
         ("geometry", toml::Table::try_from(GeometryConfig::default())),
     ] {
-        if let (false, Ok(default)) = (table.contains_key(name), default) {
-            table.insert(name.to_string(), toml::Value::Table(default));
+        let Ok(default) = default else { continue };
+        match table.get_mut(name) {
+            // A section without some fields (written before they existed): add them.
+            Some(toml::Value::Table(section)) => {
+                for (key, value) in default {
+                    section.entry(key).or_insert(value);
+                }
+            }
+            Some(_) => {}
+            None => {
+                table.insert(name.to_string(), toml::Value::Table(default));
+            }
         }
     }
 }

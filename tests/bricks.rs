@@ -676,3 +676,49 @@ fn bricks_keep_the_image_bit_exact_with_leap_values_in_the_volume() {
         assert_cycle_equals_functional(&volume, "class", "orbit:2/72", &sets);
     }
 }
+
+#[test]
+fn a_cylinder_pointer_ends_rays_and_shows_in_all_three_models() {
+    let volume = phantom("phantom:metaballs:64");
+    // Along x through the middle of the volume: a horizontal bar across the front view.
+    let sets = [
+        "geometry.shape=cylinder",
+        "geometry.centre=[-10.0,31.5,31.5]",
+        "geometry.end=[74.0,31.5,31.5]",
+        "geometry.radius=2.5",
+        "geometry.colour=[0.0,0.0,1.0]",
+    ];
+    let (step, _) = assert_cycle_equals_functional(&volume, "zero", "front", &sets);
+    let float = render(&volume, "zero", Model::Float, "front", &sets);
+    let cmp = compare(&step.frame.pixels, &float.frame.pixels, SIZE, SIZE).unwrap();
+    assert!(cmp.psnr_db > 35.0, "{cmp:?}");
+    let plain = render(&volume, "zero", Model::Step, "front", &[]);
+    let row = |r: &RunReport, y: u32| -> Vec<[u8; 4]> {
+        r.frame.pixels[(y * SIZE) as usize..((y + 1) * SIZE) as usize].to_vec()
+    };
+    // The bar's rows: every pixel shows some blue (the pointer behind or in front of the
+    // volume); far from it the image is the plain one.
+    for y in [SIZE / 2 - 1, SIZE / 2] {
+        assert!(
+            row(&step, y).iter().all(|p| p[2] > 0 && p[3] == 255),
+            "row {y}"
+        );
+        assert!(row(&step, y) != row(&plain, y));
+    }
+    for y in [2, SIZE - 3] {
+        assert!(row(&step, y) == row(&plain, y), "row {y}");
+    }
+    assert!(range(&step).positions_cut > 0);
+    // An axis of zero length is refused.
+    let e = HardwareConfig::load(
+        None,
+        &[
+            "geometry.shape=cylinder".into(),
+            "geometry.centre=[1.0,1.0,1.0]".into(),
+            "geometry.end=[1.0,1.0,1.0]".into(),
+        ],
+    )
+    .expect_err("refused")
+    .to_string();
+    assert!(e.contains("geometry.end"), "{e}");
+}
