@@ -60,7 +60,8 @@ impl RenderSettings {
 /// What happened to one ray.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct RayRecord {
-    /// The ray meets the volume's sampling box and has at least one sample inside it.
+    /// The ray meets the volume's sampling box and has at least one sample inside it (between
+    /// its start and end, when bricks, clipping or geometry set them).
     pub hit: bool,
     /// Samples taken (interpolated, classified and composited), leap samples included.
     pub samples: u32,
