@@ -743,6 +743,7 @@ impl HardwareConfig {
             1,
             64,
         )?;
+        range("bricks.setup_units", b.setup_units as u64, 1, 64)?;
         let bw = b.table_bytes_per_cycle;
         if !(bw.is_finite() && bw > 0.0 && bw <= 1e6) {
             return Err(Error::config(

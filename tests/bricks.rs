@@ -472,6 +472,28 @@ fn bad_input_gives_clear_errors() {
     assert!(e.contains("clip.box"), "{e}");
     let e = load(&["geometry.shape=depth-file"]);
     assert!(e.contains("geometry.file"), "{e}");
+    let e = load(&["clip.planes=[{point=[nan,0.0,0.0],normal=[1.0,0.0,0.0]}]"]);
+    assert!(e.contains("clip.planes[0].point"), "{e}");
+    let e = load(&["geometry.radius=0.0"]);
+    assert!(e.contains("geometry.radius"), "{e}");
+    let e = load(&["bricks.table_bytes_per_cycle=0.0"]);
+    assert!(e.contains("bricks.table_bytes_per_cycle"), "{e}");
+    let e = load(&["bricks.setup_units=0"]);
+    assert!(e.contains("bricks.setup_units"), "{e}");
+    // Depth files that are not depth files: errors naming the file, no panic.
+    let dir = scratch("hostile-depth");
+    for (name, bytes) in [
+        ("empty", Vec::new()),
+        ("no-header", vec![0u8; 100]),
+        ("bad-size", b"VIZDEPTH -3 4\n".to_vec()),
+        ("huge", b"VIZDEPTH 99999999 99999999\n".to_vec()),
+        ("wrong-magic", b"DEPTH 2 2\n0000000000000000".to_vec()),
+    ] {
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).unwrap();
+        let e = DepthImage::read(&path).expect_err(name);
+        assert!(e.to_string().contains(name), "{name}: {e}");
+    }
     // A brick larger than the volume: refused when the run is prepared.
     let volume = phantom("phantom:sphere:16");
     let run = description(&volume, "class", Model::Step, "front", &["bricks.size=32"]);
