@@ -60,6 +60,10 @@ pub enum Metric {
     CyclesPerStep,
     /// Skippable (empty) sub-cubes, %.
     Skippable,
+    /// Cycles with the ray queue empty (cycle model): ray setup did not keep up.
+    QueueEmpty,
+    /// Positions in the box that the rays' start and end cut (bricks, clipping), %.
+    PositionsCut,
 }
 
 impl Metric {
@@ -76,6 +80,8 @@ impl Metric {
             Metric::RowMisses => "row misses (page reloads) per frame",
             Metric::CyclesPerStep => "cycles per step",
             Metric::Skippable => "skippable sub-cubes (%)",
+            Metric::QueueEmpty => "cycles with the ray queue empty per frame",
+            Metric::PositionsCut => "positions cut by ray start and end (%)",
         }
     }
 
@@ -92,6 +98,8 @@ impl Metric {
             Metric::RowMisses => "row-misses",
             Metric::CyclesPerStep => "cycles-per-step",
             Metric::Skippable => "skippable",
+            Metric::QueueEmpty => "queue-empty",
+            Metric::PositionsCut => "positions-cut",
         }
     }
 
@@ -116,6 +124,16 @@ impl Metric {
                 (steps > 0.0).then(|| field("cycles").map(|c| c / steps))?
             }
             Metric::Skippable => field("skippable_subcubes_percent"),
+            Metric::QueueEmpty => line
+                .get("stall_cycles")
+                .and_then(|s| s.get("ray_queue_empty"))
+                .and_then(Value::as_f64),
+            Metric::PositionsCut => {
+                let r = line.get("ray_range")?;
+                let cut = r.get("positions_cut").and_then(Value::as_f64)?;
+                let total = r.get("positions_in_box").and_then(Value::as_f64)?;
+                (total > 0.0).then(|| 100.0 * cut / total)
+            }
         }
     }
 }
