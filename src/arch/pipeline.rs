@@ -567,7 +567,9 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
         r.positions_in_range = totals.positions_in_range;
         r.positions_cut = totals.positions_cut;
         // The start/end table is loaded from the host before the first ray is set up: its
-        // cycles come first in the frame (the pipeline idles; the memory only refreshes).
+        // cycles come first in the frame, the pipeline idle. They are added here rather than
+        // simulated, so cycle numbers in waveforms and traces start after the load and the
+        // memory's refreshes during it are not modelled.
         if let Some((bytes, load)) = table_cost(config, ray_count as u64) {
             r.table_bytes = Some(bytes);
             r.table_load_cycles = Some(load);
