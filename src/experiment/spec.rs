@@ -29,7 +29,8 @@ pub struct ExperimentFile {
     /// Classification axis: `zero` ('0' transfer function and map) and/or `class`.
     #[serde(default = "default_tf")]
     pub tf: Vec<String>,
-    /// Acceleration modes: `none`, or `+`-joined `ert`, `leapN`, `hier`, `distanceN`.
+    /// Acceleration modes: `none`, or `+`-joined `ert`, `leapN`, `hier`, `distanceN`,
+    /// `leapvalues`, `leapvalues-homogeneous`.
     pub modes: Vec<String>,
     /// `step` (functional model, counts steps) and/or `cycle` (cycle-accurate with SDRAM).
     pub models: Vec<String>,
@@ -86,6 +87,10 @@ pub struct Mode {
     /// set, so existing results keep their form.
     #[serde(skip_serializing_if = "is_zero")]
     pub distance_bits: u32,
+    /// Leap values in the volume (`leapvalues`: empty regions, `leapvalues-homogeneous`),
+    /// None = not this structure. Serialised only when set.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub leap_values: Option<config::LeapRegions>,
 }
 
 fn is_zero(n: &u32) -> bool {
@@ -99,6 +104,7 @@ impl Mode {
             subcube: 0,
             hierarchy: false,
             distance_bits: 0,
+            leap_values: None,
         };
         if text == "none" {
             return Ok(mode);
@@ -107,6 +113,10 @@ impl Mode {
             match token {
                 "ert" => mode.ert = true,
                 "hier" => mode.hierarchy = true,
+                "leapvalues" => mode.leap_values = Some(config::LeapRegions::Empty),
+                "leapvalues-homogeneous" => {
+                    mode.leap_values = Some(config::LeapRegions::Homogeneous)
+                }
                 t if t.starts_with("distance") => {
                     let n: u32 = t[8..]
                         .parse()
@@ -132,16 +142,23 @@ impl Mode {
                 }
                 t => {
                     return Err(format!(
-                        "unknown token `{t}`; modes are `none` or `+`-joined `ert`, `leapN`, `hier`, `distanceN`"
-                    ))
+                    "unknown token `{t}`; modes are `none` or `+`-joined `ert`, `leapN`, `hier`, \
+                         `distanceN`, `leapvalues`, `leapvalues-homogeneous`"
+                ))
                 }
             }
         }
         if mode.hierarchy && mode.subcube == 0 {
             return Err("`hier` needs `leapN`".into());
         }
-        if mode.distance_bits > 0 && mode.subcube > 0 {
-            return Err("`leapN` and `distanceN` are two leaping structures; choose one".into());
+        let structures = (mode.subcube > 0) as u32
+            + (mode.distance_bits > 0) as u32
+            + mode.leap_values.is_some() as u32;
+        if structures > 1 {
+            return Err(
+                "`leapN`, `distanceN` and `leapvalues` are different leaping structures; choose one"
+                    .into(),
+            );
         }
         Ok(mode)
     }
@@ -160,6 +177,11 @@ impl Mode {
         }
         if self.distance_bits > 0 {
             parts.push(format!("distance{}", self.distance_bits));
+        }
+        match self.leap_values {
+            Some(config::LeapRegions::Empty) => parts.push("leapvalues".into()),
+            Some(config::LeapRegions::Homogeneous) => parts.push("leapvalues-homogeneous".into()),
+            None => {}
         }
         if parts.is_empty() {
             "none".into()
@@ -227,13 +249,14 @@ pub struct Expansion {
 }
 
 /// Configuration fields a mode or the tf axis sets.
-const MODE_FIELDS: [&str; 6] = [
+const MODE_FIELDS: [&str; 7] = [
     "compositing.ert",
     "occupancy.subcube",
     "occupancy.hierarchy",
     "occupancy.kind",
     "occupancy.structure",
     "occupancy.distance_bits",
+    "leap_values.regions",
 ];
 
 /// Reads and expands an experiment file.
@@ -485,6 +508,9 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
                             // Set here, not by `--set`, so a base file without the fields works.
                             config.occupancy.structure = config::LeapStructure::Distance;
                             config.occupancy.distance_bits = mode.distance_bits;
+                        } else if let Some(regions) = mode.leap_values {
+                            config.occupancy.structure = config::LeapStructure::LeapValues;
+                            config.leap_values.regions = regions;
                         } else {
                             config.occupancy.structure = config::LeapStructure::Map;
                         }
