@@ -102,6 +102,59 @@ fn fixed_256(bencher: divan::Bencher, subcube: usize) {
         .bench(|| pool.install(|| renderer.render(&camera)));
 }
 
+/// The functional fixed-point model with the leaping structures kept in volume memory, same
+/// frame; divan's items are steps. Preprocessing (segmentation, distance transforms) is done
+/// once, outside the timed loop.
+#[divan::bench(sample_count = 5, args = ["leapvalues", "leapvalues-homogeneous", "distance8"])]
+fn fixed_256_in_memory(bencher: divan::Bencher, structure: &str) {
+    use vizsim::config::{HardwareConfig, LeapRegions, LeapStructure};
+    use vizsim::functional::renderer::{FixedRenderer, Leaping};
+    let volume = volume_256();
+    let tf = transfer::resolve("class", &volume.name).unwrap();
+    let settings = RenderSettings {
+        ert_threshold: None,
+        ..Default::default()
+    };
+    let mut config = HardwareConfig::default_config();
+    match structure {
+        "distance8" => config.occupancy.structure = LeapStructure::Distance,
+        _ => {
+            config.occupancy.structure = LeapStructure::LeapValues;
+            if structure == "leapvalues-homogeneous" {
+                config.leap_values.regions = LeapRegions::Homogeneous;
+            }
+        }
+    }
+    let renderer = FixedRenderer::new(
+        volume,
+        &tf,
+        &settings,
+        &config,
+        Leaping::from_config(&config),
+    )
+    .unwrap();
+    let camera = Camera::for_volume(
+        glam::Vec3::from(volume.extent()),
+        View::Orbit { k: 5, n: 72 },
+        Projection::Ortho,
+        256,
+        256,
+    )
+    .unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let steps = pool.install(|| renderer.render(&camera)).stats().steps();
+    println!(
+        "fixed_256_in_memory ({structure}): {} on 1 thread, {steps} steps per frame",
+        volume.name
+    );
+    bencher
+        .counter(ItemsCount::new(steps))
+        .bench(|| pool.install(|| renderer.render(&camera)));
+}
+
 /// The cycle-accurate pipeline with the SDRAM model (default configuration), one 256³ frame at
 /// 128×128 (a 256×256 frame takes four times as long); divan's items are simulated cycles.
 #[divan::bench(sample_count = 2)]

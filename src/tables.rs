@@ -153,36 +153,50 @@ pub fn field_text(line: &Value, field: &str) -> Option<String> {
     })
 }
 
-/// How modes are named in column headers and in which order they appear.
+/// How modes are named in column headers and in which order they appear: `none`, `ERT`, `8³`,
+/// `8³+h` (occupancy map), `dist8` (distance volume, 8 bits), `LV` / `LV-h` (leap values in
+/// the volume, empty / homogeneous regions); "no ERT, " in front when the mode has no ERT but
+/// leaps.
 pub fn mode_label(mode: &str) -> String {
-    let mut parts = Vec::new();
-    let mut size = None;
-    let mut hierarchy = false;
     let mut ert = false;
+    let mut hierarchy = false;
+    let mut structure = None;
+    let mut bricks = None;
+    let mut table = false;
     for token in mode.split('+') {
         match token {
             "ert" => ert = true,
             "hier" => hierarchy = true,
-            t if t.starts_with("leap") => size = Some(t.trim_start_matches("leap").to_string()),
             "none" => {}
-            t => parts.push(t.to_string()),
+            "leapvalues" => structure = Some("LV".to_string()),
+            "leapvalues-homogeneous" => structure = Some("LV-h".to_string()),
+            t if t.starts_with("distance") => {
+                structure = Some(format!("dist{}", t.trim_start_matches("distance")))
+            }
+            t if t.starts_with("leap") => {
+                structure = Some(format!("{}³", t.trim_start_matches("leap")))
+            }
+            t if t.starts_with("bricks") => {
+                bricks = Some(t.trim_start_matches("bricks").to_string())
+            }
+            "table" => table = true,
+            _ => return mode.to_string(),
         }
     }
-    let base = match (size, ert) {
+    let base = match (structure, ert) {
         (None, true) => "ERT".to_string(),
-        (None, false) if parts.is_empty() => "none".into(),
+        (None, false) if bricks.is_some() => "no ERT".into(),
+        (None, false) => "none".into(),
         (Some(s), e) => format!(
-            "{}{s}³{}",
+            "{}{s}{}",
             if e { "" } else { "no ERT, " },
             if hierarchy { "+h" } else { "" }
         ),
-        _ => return mode.to_string(),
     };
-    // Other tokens (distanceN, bricksN, table) keep their names, so modes stay distinct.
-    if parts.is_empty() {
-        base
-    } else {
-        format!("{base}+{}", parts.join("+"))
+    // Bounding bricks come on top of any structure: `ERT+bricks8`, `8³+bricks16 (table)`.
+    match bricks {
+        Some(n) => format!("{base}+bricks{n}{}", if table { " (table)" } else { "" }),
+        None => base,
     }
 }
 
@@ -194,11 +208,21 @@ fn sort_key(field: &str, text: &str) -> (i64, String) {
             } else if text == "ert" {
                 1
             } else {
-                let size: i64 = text
-                    .split('+')
-                    .find_map(|t| t.strip_prefix("leap"))
-                    .and_then(|n| n.parse().ok())
-                    .unwrap_or(999);
+                // Occupancy maps by sub-cube size, then distance volumes by bits, then leap
+                // values (empty before homogeneous).
+                let tokens = || text.split('+');
+                let size: i64 = if tokens().any(|t| t == "leapvalues") {
+                    2000
+                } else if tokens().any(|t| t == "leapvalues-homogeneous") {
+                    2001
+                } else if let Some(bits) = tokens().find_map(|t| t.strip_prefix("distance")) {
+                    1000 + bits.parse::<i64>().unwrap_or(0)
+                } else {
+                    tokens()
+                        .find_map(|t| t.strip_prefix("leap"))
+                        .and_then(|n| n.parse().ok())
+                        .unwrap_or(999)
+                };
                 10 + size * 4 + text.contains("hier") as i64 + 2 * (!text.contains("ert")) as i64
             };
             (rank, text.to_string())
@@ -491,5 +515,58 @@ fn csv_field(text: &str) -> String {
         format!("\"{}\"", text.replace('"', "\"\""))
     } else {
         text.to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{mode_label, sort_key};
+
+    #[test]
+    fn every_leaping_structure_has_its_own_label_and_place() {
+        let modes = [
+            "none",
+            "ert",
+            "ert+leap4",
+            "ert+leap8+hier",
+            "leap8",
+            "ert+distance4",
+            "ert+distance8",
+            "ert+leapvalues",
+            "ert+leapvalues-homogeneous",
+        ];
+        let labels: Vec<String> = modes.iter().map(|m| mode_label(m)).collect();
+        assert_eq!(
+            labels,
+            [
+                "none",
+                "ERT",
+                "4³",
+                "8³+h",
+                "no ERT, 8³",
+                "dist4",
+                "dist8",
+                "LV",
+                "LV-h"
+            ]
+        );
+        let mut sorted = modes.to_vec();
+        sorted.reverse();
+        sorted.sort_by_key(|m| sort_key("mode", m));
+        assert_eq!(
+            sorted,
+            [
+                "none",
+                "ert",
+                "ert+leap4",
+                "ert+leap8+hier",
+                "leap8",
+                "ert+distance4",
+                "ert+distance8",
+                "ert+leapvalues",
+                "ert+leapvalues-homogeneous"
+            ]
+        );
+        assert_eq!(mode_label("ert+octree"), "ert+octree");
     }
 }

@@ -560,3 +560,47 @@ fn spacing_beyond_the_guards_is_an_error_and_a_single_region_is_fine() {
     assert!(plain.pixels == leapt.pixels);
     assert!(leapt.stats().steps() < plain.stats().steps());
 }
+
+#[test]
+fn leap_value_modes_parse_print_and_configure() {
+    use vizsim::experiment::spec::Mode;
+    let m = Mode::parse("ert+leapvalues").unwrap();
+    assert!(m.ert && m.leap_values == Some(LeapRegions::Empty) && m.subcube == 0);
+    assert_eq!(m.name(), "ert+leapvalues");
+    let h = Mode::parse("leapvalues-homogeneous").unwrap();
+    assert_eq!(h.leap_values, Some(LeapRegions::Homogeneous));
+    assert_eq!(h.name(), "leapvalues-homogeneous");
+    assert!(Mode::parse("leap8+leapvalues").is_err());
+    assert!(Mode::parse("distance8+leapvalues").is_err());
+    assert!(Mode::parse("leapvalues+hier").is_err());
+    assert!(Mode::parse("leapvaluesx").is_err());
+    // Modes without leap values serialise as before.
+    let json = serde_json::to_string(&Mode::parse("ert+leap8").unwrap()).unwrap();
+    assert!(!json.contains("leap_values"), "{json}");
+
+    let text = r#"
+name = "lv"
+datasets = ["phantom:cast:32"]
+tf = ["class"]
+modes = ["ert+leapvalues", "ert+leapvalues-homogeneous", "ert"]
+models = ["step"]
+[frames]
+orbit = 4
+size = "16x16"
+"#;
+    let expansion = vizsim::experiment::spec::expand(text, "lv.toml", None).unwrap();
+    let structures: Vec<_> = expansion
+        .runs
+        .iter()
+        .map(|r| {
+            (
+                r.run.hardware.occupancy.structure,
+                r.run.hardware.leap_values.regions,
+            )
+        })
+        .collect();
+    use vizsim::config::LeapStructure;
+    assert!(structures.contains(&(LeapStructure::LeapValues, LeapRegions::Homogeneous)));
+    assert!(structures.contains(&(LeapStructure::LeapValues, LeapRegions::Empty)));
+    assert!(structures.contains(&(LeapStructure::Map, LeapRegions::Empty)));
+}

@@ -29,7 +29,8 @@ pub struct ExperimentFile {
     /// Classification axis: `zero` ('0' transfer function and map) and/or `class`.
     #[serde(default = "default_tf")]
     pub tf: Vec<String>,
-    /// Acceleration modes: `none`, or `+`-joined `ert`, `leapN`, `hier`, `distanceN`.
+    /// Acceleration modes: `none`, or `+`-joined `ert`, `leapN`, `hier`, `distanceN`,
+    /// `leapvalues`, `leapvalues-homogeneous`.
     pub modes: Vec<String>,
     /// `step` (functional model, counts steps) and/or `cycle` (cycle-accurate with SDRAM).
     pub models: Vec<String>,
@@ -86,6 +87,10 @@ pub struct Mode {
     /// set, so existing results keep their form.
     #[serde(skip_serializing_if = "is_zero")]
     pub distance_bits: u32,
+    /// Leap values in the volume (`leapvalues`: empty regions, `leapvalues-homogeneous`),
+    /// None = not this structure. Serialised only when set.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub leap_values: Option<config::LeapRegions>,
     /// Bounding-brick edge (`bricksN`), 0 = none; `table`: start and end from a per-frame table
     /// instead of the ray-setup traversal. Serialised only when set.
     #[serde(skip_serializing_if = "is_zero_usize")]
@@ -113,6 +118,7 @@ impl Mode {
             subcube: 0,
             hierarchy: false,
             distance_bits: 0,
+            leap_values: None,
             bricks: 0,
             brick_table: false,
         };
@@ -123,6 +129,10 @@ impl Mode {
             match token {
                 "ert" => mode.ert = true,
                 "hier" => mode.hierarchy = true,
+                "leapvalues" => mode.leap_values = Some(config::LeapRegions::Empty),
+                "leapvalues-homogeneous" => {
+                    mode.leap_values = Some(config::LeapRegions::Homogeneous)
+                }
                 t if t.starts_with("distance") => {
                     let n: u32 = t[8..]
                         .parse()
@@ -161,16 +171,23 @@ impl Mode {
                 }
                 t => {
                     return Err(format!(
-                        "unknown token `{t}`; modes are `none` or `+`-joined `ert`, `leapN`, `hier`, `distanceN`, `bricksN`, `table`"
-                    ))
+                    "unknown token `{t}`; modes are `none` or `+`-joined `ert`, `leapN`, `hier`, \
+                         `distanceN`, `leapvalues`, `leapvalues-homogeneous`, `bricksN`, `table`"
+                ))
                 }
             }
         }
         if mode.hierarchy && mode.subcube == 0 {
             return Err("`hier` needs `leapN`".into());
         }
-        if mode.distance_bits > 0 && mode.subcube > 0 {
-            return Err("`leapN` and `distanceN` are two leaping structures; choose one".into());
+        let structures = (mode.subcube > 0) as u32
+            + (mode.distance_bits > 0) as u32
+            + mode.leap_values.is_some() as u32;
+        if structures > 1 {
+            return Err(
+                "`leapN`, `distanceN` and `leapvalues` are different leaping structures; choose one"
+                    .into(),
+            );
         }
         if mode.brick_table && mode.bricks == 0 {
             return Err("`table` needs `bricksN`".into());
@@ -192,6 +209,11 @@ impl Mode {
         }
         if self.distance_bits > 0 {
             parts.push(format!("distance{}", self.distance_bits));
+        }
+        match self.leap_values {
+            Some(config::LeapRegions::Empty) => parts.push("leapvalues".into()),
+            Some(config::LeapRegions::Homogeneous) => parts.push("leapvalues-homogeneous".into()),
+            None => {}
         }
         if self.bricks > 0 {
             parts.push(format!("bricks{}", self.bricks));
@@ -265,13 +287,14 @@ pub struct Expansion {
 }
 
 /// Configuration fields a mode or the tf axis sets.
-const MODE_FIELDS: [&str; 8] = [
+const MODE_FIELDS: [&str; 9] = [
     "compositing.ert",
     "occupancy.subcube",
     "occupancy.hierarchy",
     "occupancy.kind",
     "occupancy.structure",
     "occupancy.distance_bits",
+    "leap_values.regions",
     "bricks.size",
     "bricks.setup",
 ];
@@ -525,6 +548,9 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
                             // Set here, not by `--set`, so a base file without the fields works.
                             config.occupancy.structure = config::LeapStructure::Distance;
                             config.occupancy.distance_bits = mode.distance_bits;
+                        } else if let Some(regions) = mode.leap_values {
+                            config.occupancy.structure = config::LeapStructure::LeapValues;
+                            config.leap_values.regions = regions;
                         } else {
                             config.occupancy.structure = config::LeapStructure::Map;
                         }
