@@ -419,6 +419,34 @@ impl AddressMap {
         word
     }
 
+    /// The words that hold voxel `p`, with the half of each it occupies (0: low, 1: high): the
+    /// voxel's own word (low half) first, then with the voxel-pair layouts and z > 0 the word
+    /// of z − 1, whose high half repeats it. Writing a voxel writes every copy; the first `n`
+    /// entries are valid.
+    #[inline]
+    pub fn voxel_copies(&self, p: [usize; 3]) -> ([(WordAddress, u8); 2], usize) {
+        let (x, y, z) = (p[0], p[1], p[2]);
+        match self.config.mapping {
+            Mapping::Interleaved8 => {
+                let module = ((x & 1) + 2 * (y & 1) + 4 * (z & 1)) as u32;
+                let w = self.word(module, [x >> 1, y >> 1, z >> 1]);
+                ([(w, 0), (w, 0)], 1)
+            }
+            _ => {
+                let module = ((x & 1) + 2 * (y & 1)) as u32;
+                let own = self.word(module, [x >> 1, y >> 1, z]);
+                if z == 0 {
+                    ([(own, 0), (own, 0)], 1)
+                } else {
+                    (
+                        [(own, 0), (self.word(module, [x >> 1, y >> 1, z - 1]), 1)],
+                        2,
+                    )
+                }
+            }
+        }
+    }
+
     #[inline]
     fn word(&self, module: u32, l: [usize; 3]) -> WordAddress {
         if self.config.mapping == Mapping::Linear4 {
