@@ -42,7 +42,10 @@ pub fn changed_bricks(before: &Volume, after: &Volume, brick: usize) -> Result<V
             }
         }
     }
-    Ok(VolumeUpdate { regions })
+    Ok(VolumeUpdate {
+        regions,
+        ..VolumeUpdate::default()
+    })
 }
 
 /// A partial update measured with both map policies.
@@ -65,9 +68,12 @@ pub struct DynamicReport {
     pub host_link_mb_per_s: f64,
     pub mapping: String,
     pub subcube: usize,
-    /// Full download with the maps built on the way (exact).
+    /// Full download in volume order (x fastest), the maps built on the way (exact).
     pub download: UpdateReport,
     pub download_ms: f64,
+    /// Full download in the layout's tiles (`VolumeUpdate::full_tiled`: whole voxel-pair words).
+    pub download_tiled: UpdateReport,
+    pub download_tiled_ms: f64,
     /// A separate scan pass through the read path (the brief's ~20 ms for 256³).
     pub scan: ScanReport,
     pub tf_change: TfChangeReport,
@@ -96,6 +102,25 @@ pub fn measure(
     let mut engine = UpdateEngine::new(hw, volume.dims, volume.bits, log2, 0)?;
     let download = engine.update(&VolumeUpdate::full(volume), PartialMapPolicy::Widen)?;
     check_maps(&engine, volume, log2, &visible, true, "after the download")?;
+    let download_tiled = {
+        let mut engine = UpdateEngine::new(hw, volume.dims, volume.bits, log2, 0)?;
+        let tiled = VolumeUpdate::full_tiled(volume, &hw.memory);
+        let report = engine.update(&tiled, PartialMapPolicy::Widen)?;
+        check_maps(
+            &engine,
+            volume,
+            log2,
+            &visible,
+            true,
+            "after the tiled download",
+        )?;
+        if engine.memory_volume("memory")?.data != volume.data {
+            return Err(Error::Invalid(
+                "the tiled download left another volume in memory".into(),
+            ));
+        }
+        report
+    };
     let scan = engine.scan();
     check_maps(&engine, volume, log2, &visible, true, "after the scan")?;
     let tf_change = engine.tf_change_costs(scan.cycles);
@@ -142,6 +167,8 @@ pub fn measure(
         subcube,
         download_ms: us(download.total_cycles) / 1e3,
         download,
+        download_tiled_ms: us(download_tiled.total_cycles) / 1e3,
+        download_tiled,
         scan,
         tf_change_table_us: us(tf_change.prefix_cycles + tf_change.table_pass_cycles),
         tf_change,

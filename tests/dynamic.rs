@@ -134,6 +134,75 @@ fn a_download_writes_every_copy_and_builds_the_exact_maps() {
 }
 
 #[test]
+fn a_tiled_download_writes_whole_words_once_and_builds_the_exact_maps() {
+    let volume = metaballs(40, 0.4); // not a multiple of the 16×16×8 tiles
+    let tf = table(&band_tf(60.0, 140.0));
+    for mapping in [
+        Mapping::Replicated4,
+        Mapping::Interleaved8,
+        Mapping::Linear4,
+    ] {
+        let hw = config(mapping);
+        let update = VolumeUpdate::full_tiled(&volume, &hw.memory);
+        let mut engine = UpdateEngine::new(&hw, volume.dims, 8, 3, 1).unwrap();
+        let tiled = engine.update(&update, PartialMapPolicy::Widen).unwrap();
+        let what = format!("{mapping:?} tiled");
+        assert!(tiled.map_exact && tiled.subcubes_partial == 0, "{what}");
+        assert_eq!(
+            engine.memory_volume("m").unwrap().data,
+            volume.data,
+            "{what}"
+        );
+        assert_maps(&engine, &volume, 3, 1, &tf, true, &what);
+        // One WRITE per word: the volume's voxels (z .. z+1 pairs and the top slice).
+        assert_eq!(tiled.writes, 40 * 40 * 40, "{what}");
+        let mut plain = UpdateEngine::new(&hw, volume.dims, 8, 3, 1).unwrap();
+        let ordered = plain
+            .update(&VolumeUpdate::full(&volume), PartialMapPolicy::Widen)
+            .unwrap();
+        // Tiles are the cubic layouts' rows (linear4's rows run along x: volume order suits it).
+        if mapping != Mapping::Linear4 {
+            assert!(
+                tiled.write_row_misses < ordered.write_row_misses,
+                "{what}: {tiled:?} against {ordered:?}"
+            );
+        }
+        if mapping == Mapping::Replicated4 {
+            // The border slices cost host bytes (one slice in 9 here).
+            assert!(tiled.host_bytes > ordered.host_bytes);
+            assert!(
+                tiled.write_cycles < ordered.write_cycles,
+                "{tiled:?} {ordered:?}"
+            );
+        }
+    }
+    // Word pairs cannot be partial, and need a voxel-pair layout.
+    let mut engine =
+        UpdateEngine::new(&config(Mapping::Replicated4), volume.dims, 8, 3, 0).unwrap();
+    let mut partial = VolumeUpdate::full_tiled(&volume, &config(Mapping::Replicated4).memory);
+    partial.regions.truncate(3);
+    let err = engine
+        .update(&partial, PartialMapPolicy::Widen)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("missing"), "{err}");
+    partial.whole_volume = false;
+    let err = engine
+        .update(&partial, PartialMapPolicy::Widen)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("whole-volume"), "{err}");
+    let mut engine =
+        UpdateEngine::new(&config(Mapping::Interleaved8), volume.dims, 8, 3, 0).unwrap();
+    let pairs = VolumeUpdate::full_tiled(&volume, &config(Mapping::Replicated4).memory);
+    let err = engine
+        .update(&pairs, PartialMapPolicy::Widen)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("interleaved8"), "{err}");
+}
+
+#[test]
 fn the_host_link_bounds_a_download_at_its_bandwidth() {
     let volume = metaballs(32, 0.0);
     let update = VolumeUpdate::full(&volume);
@@ -216,7 +285,10 @@ fn partial_update(before: &Volume, after: &Volume) -> VolumeUpdate {
         dims: [13, 9, 11],
         values: vec![0; 13 * 9 * 11],
     });
-    let mut update = VolumeUpdate { regions };
+    let mut update = VolumeUpdate {
+        regions,
+        ..VolumeUpdate::default()
+    };
     update.regions.extend(
         VolumeUpdate::voxels(&[
             ([20, 20, 20], 7),
@@ -323,6 +395,7 @@ fn bad_input_gives_clear_errors() {
             dims: [8, 1, 1],
             values: vec![1; 8],
         }],
+        ..VolumeUpdate::default()
     };
     let err = engine
         .update(&outside, PartialMapPolicy::Widen)
@@ -335,6 +408,7 @@ fn bad_input_gives_clear_errors() {
             dims: [2, 2, 2],
             values: vec![1; 7],
         }],
+        ..VolumeUpdate::default()
     };
     let err = engine
         .update(&short, PartialMapPolicy::Widen)

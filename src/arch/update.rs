@@ -40,9 +40,14 @@ pub const REGION_HEADER_BYTES: u64 = 12;
 pub const HOST_BUFFER_BYTES: u64 = 64;
 /// Voxels the input stage takes per cycle at most (one 32-bit host word of 8-bit voxels).
 pub const INPUT_VOXELS_PER_CYCLE: usize = 4;
+/// Voxels of the word-pair slice buffer (one slice of a region: 16×16 for the default tiles;
+/// 4096 × 16 bits = 64 Kbit of block RAM at most).
+pub const SLICE_BUFFER_VOXELS: usize = 4096;
 
 const UNTOUCHED: u32 = 0;
 const DIRTY: u32 = 1;
+/// Reset by a whole-volume download: exact.
+const WHOLE: u32 = u32::MAX;
 
 /// A box of voxels written by an update: `values` x fastest, `dims` product long.
 #[derive(Clone, Debug, PartialEq)]
@@ -57,10 +62,20 @@ pub struct Region {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct VolumeUpdate {
     pub regions: Vec<Region>,
+    /// The host announces a download of the whole volume: the map unit resets every table
+    /// entry first, and every entry ends exact. `check` verifies that the regions cover every
+    /// voxel and that a voxel sent twice (a tile border) carries the same value both times.
+    pub whole_volume: bool,
+    /// Voxel-pair words (`replicated4`, `linear4`): the host sends each region slice by slice
+    /// including the slice above it (the border), and the FPGA writes each word (z, z + 1) once,
+    /// whole, when voxel z + 1 arrives, from a buffer of the region's previous slice (at most
+    /// `SLICE_BUFFER_VOXELS`); a region's top slice is written only at the volume's top. Without
+    /// it every voxel is written into both its words with byte masks.
+    pub word_pairs: bool,
 }
 
 impl VolumeUpdate {
-    /// The whole volume as one region (a download).
+    /// The whole volume as one region in volume order, x fastest (a download).
     pub fn full(volume: &Volume) -> VolumeUpdate {
         VolumeUpdate {
             regions: vec![Region {
@@ -68,6 +83,41 @@ impl VolumeUpdate {
                 dims: volume.dims,
                 values: volume.data.clone(),
             }],
+            whole_volume: true,
+            word_pairs: false,
+        }
+    }
+
+    /// The whole volume in the layout's tiles (the voxels of one row of every module: the
+    /// block of `memory.block` words), tile after tile, x fastest: a download whose writes stay
+    /// in one row per module for a tile. With the voxel-pair layouts each tile carries the
+    /// slice above it and the words are written whole (`word_pairs`).
+    pub fn full_tiled(volume: &Volume, config: &MemoryConfig) -> VolumeUpdate {
+        let b = config.block.map(|b| b as usize);
+        let pairs = config.mapping != Mapping::Interleaved8;
+        let tile = if pairs {
+            [2 * b[0], 2 * b[1], b[2]]
+        } else {
+            [2 * b[0], 2 * b[1], 2 * b[2]]
+        };
+        let d = volume.dims;
+        let mut regions = Vec::new();
+        for z in (0..d[2]).step_by(tile[2]) {
+            for y in (0..d[1]).step_by(tile[1]) {
+                for x in (0..d[0]).step_by(tile[0]) {
+                    let o = [x, y, z];
+                    let mut e = [0, 1, 2].map(|a| tile[a].min(d[a] - o[a]));
+                    if pairs && z + e[2] < d[2] {
+                        e[2] += 1; // the border slice
+                    }
+                    regions.push(Self::region_of(volume, o, e));
+                }
+            }
+        }
+        VolumeUpdate {
+            regions,
+            whole_volume: true,
+            word_pairs: pairs,
         }
     }
 
@@ -82,6 +132,7 @@ impl VolumeUpdate {
                     values: vec![v],
                 })
                 .collect(),
+            ..VolumeUpdate::default()
         }
     }
 
@@ -125,6 +176,60 @@ impl VolumeUpdate {
             }
             if let Some(v) = r.values.iter().find(|&&v| v > max) {
                 return bad(format!("value {v} exceeds the {bits}-bit volume's {max}"));
+            }
+            if self.word_pairs && r.dims[0] * r.dims[1] > SLICE_BUFFER_VOXELS {
+                return bad(format!(
+                    "a slice of {}×{} voxels exceeds the word-pair slice buffer of {SLICE_BUFFER_VOXELS}",
+                    r.dims[0], r.dims[1]
+                ));
+            }
+        }
+        if self.word_pairs && !self.whole_volume {
+            return Err(Error::Invalid(
+                "word-pair updates are whole-volume downloads (a partial region would leave the \
+                 copy of its bottom slice in the word below stale)"
+                    .into(),
+            ));
+        }
+        if self.whole_volume {
+            // Every voxel sent, and sent with one value; with word pairs every voxel above the
+            // bottom sent together with the one below it (so both its words are written).
+            let mut seen: Vec<Option<u16>> = vec![None; dims.iter().product()];
+            let mut paired = vec![false; if self.word_pairs { seen.len() } else { 0 }];
+            for (i, r) in self.regions.iter().enumerate() {
+                let mut values = r.values.iter();
+                for z in r.origin[2]..r.origin[2] + r.dims[2] {
+                    for y in r.origin[1]..r.origin[1] + r.dims[1] {
+                        for x in r.origin[0]..r.origin[0] + r.dims[0] {
+                            let v = *values.next().expect("checked length");
+                            let slot = &mut seen[x + dims[0] * (y + dims[1] * z)];
+                            if slot.is_some_and(|old| old != v) {
+                                return Err(Error::Invalid(format!(
+                                    "update region {i}: a whole-volume download sends voxel \
+                                     {x},{y},{z} twice with different values"
+                                )));
+                            }
+                            *slot = Some(v);
+                            if self.word_pairs && z > r.origin[2] {
+                                paired[x + dims[0] * (y + dims[1] * z)] = true;
+                            }
+                        }
+                    }
+                }
+            }
+            if let Some(i) = seen.iter().position(Option::is_none) {
+                let (x, y, z) = (i % dims[0], i / dims[0] % dims[1], i / (dims[0] * dims[1]));
+                return Err(Error::Invalid(format!(
+                    "a whole-volume download must send every voxel; {x},{y},{z} is missing"
+                )));
+            }
+            let plane = dims[0] * dims[1];
+            if let Some(i) = (plane..paired.len()).find(|&i| !paired[i]) {
+                let (x, y, z) = (i % dims[0], i / dims[0] % dims[1], i / plane);
+                return Err(Error::Invalid(format!(
+                    "a word-pair download must send voxel {x},{y},{z} in a region with the voxel \
+                     below it (regions overlap by one slice in z)"
+                )));
             }
         }
         Ok(())
@@ -383,6 +488,8 @@ pub struct UpdateEngine {
     /// Host-link bytes per clock, 32.32 fixed point.
     link_per_cycle: u64,
     now: u64,
+    /// The word-pair slice buffer (the region's previous slice).
+    slice: Vec<u16>,
 }
 
 impl UpdateEngine {
@@ -426,6 +533,7 @@ impl UpdateEngine {
             clock_mhz: hw.clock.frequency_mhz,
             link_per_cycle,
             now: 0,
+            slice: Vec::new(),
         })
     }
 
@@ -477,6 +585,13 @@ impl UpdateEngine {
         policy: PartialMapPolicy,
     ) -> Result<UpdateReport> {
         update.check(self.dims, self.bits)?;
+        if update.word_pairs && self.config.mapping == Mapping::Interleaved8 {
+            return Err(Error::Invalid(
+                "word-pair updates need a voxel-pair layout (replicated4 or linear4); \
+                 interleaved8 stores one voxel per word"
+                    .into(),
+            ));
+        }
         let start = self.now;
         let (writes0, misses0, refreshes0) = (
             self.stats_sum(|s| s.writes),
@@ -493,6 +608,13 @@ impl UpdateEngine {
         // Per sub-cube: UNTOUCHED, DIRTY (partly written), or r + 2 when region r covers its
         // block wholly (entry reset when r began: exact unless a later region writes part).
         let mut touched = vec![UNTOUCHED; self.table.subcubes()];
+        if update.whole_volume {
+            for i in 0..self.table.subcubes() {
+                self.table.reset(i);
+            }
+            touched.fill(WHOLE);
+        }
+        self.slice.clear();
         self.begin_region(update, 0, &mut touched);
         let mut credit = 0u64; // host bytes arrived, 32.32
         let cap = HOST_BUFFER_BYTES << 32;
@@ -516,7 +638,7 @@ impl UpdateEngine {
             self.now += 1;
         }
         let write_cycles = last_write + 1 - start;
-        let reset = touched.iter().filter(|&&t| t >= 2).count() as u64;
+        let reset = touched.iter().filter(|&&t| t >= 2 || t == WHOLE).count() as u64;
         let partial = touched.iter().filter(|&&t| t == DIRTY).count() as u64;
         let rescan_cycles = match policy {
             PartialMapPolicy::Widen => 0,
@@ -557,6 +679,9 @@ impl UpdateEngine {
         let Some(r) = update.regions.get(region) else {
             return;
         };
+        if update.whole_volume {
+            return; // every entry was reset at the start
+        }
         let s = 1usize << self.table.cube_log2;
         let lo = [0, 1, 2].map(|a| r.origin[a].saturating_sub(s + self.table.stencil_reach) / s);
         let hi = [0, 1, 2].map(|a| ((r.origin[a] + r.dims[a]) / s).min(self.table.dims[a] - 1));
@@ -607,30 +732,38 @@ impl UpdateEngine {
                 r.origin[2] + i / (r.dims[0] * r.dims[1]),
             ];
             let value = r.values[i];
-            let (copies, n) = self.map.voxel_copies(p);
-            let module = &mut self.modules[copies[0].0.module as usize];
-            if module.writes_pending() + n > self.config.address_fifo_depth {
-                return true;
-            }
-            for &(addr, half) in &copies[..n] {
-                module.push_write(
-                    PendingWrite {
-                        addr,
-                        data: (value as u32) << (16 * half as u32),
-                        mask: 1 << half,
-                    },
-                    self.now,
-                );
+            if feed.update.word_pairs {
+                if !self.write_pair(r, p, value) {
+                    return true;
+                }
+            } else {
+                let (copies, n) = self.map.voxel_copies(p);
+                let module = &mut self.modules[copies[0].0.module as usize];
+                if module.writes_pending() + n > self.config.address_fifo_depth {
+                    return true;
+                }
+                for &(addr, half) in &copies[..n] {
+                    module.push_write(
+                        PendingWrite {
+                            addr,
+                            data: (value as u32) << (16 * half as u32),
+                            mask: 1 << half,
+                        },
+                        self.now,
+                    );
+                }
             }
             *credit -= voxel_bytes * one;
             // The map unit: widen every holder; a holder not reset by this region is dirty.
             let table = &mut self.table;
             let this = feed.region as u32 + 2;
-            table.for_each_holder(p, |c| {
-                if touched[c] != this {
-                    touched[c] = DIRTY;
-                }
-            });
+            if !feed.update.whole_volume {
+                table.for_each_holder(p, |c| {
+                    if touched[c] != this {
+                        touched[c] = DIRTY;
+                    }
+                });
+            }
             table.widen(p, value);
             feed.voxel += 1;
             if feed.voxel == r.values.len() {
@@ -652,6 +785,47 @@ impl UpdateEngine {
             }
         }
         false
+    }
+
+    /// Word-pair mode: voxel `p` of region `r` completes the word (z − 1, z) from the slice
+    /// buffer (above the region's first slice), and at the volume's top starts and ends its
+    /// own word (low half). False, nothing done, if the module's write FIFO lacks room.
+    fn write_pair(&mut self, r: &Region, p: [usize; 3], value: u16) -> bool {
+        let at = (p[0] - r.origin[0]) + r.dims[0] * (p[1] - r.origin[1]);
+        if self.slice.len() < r.dims[0] * r.dims[1] {
+            self.slice.resize(r.dims[0] * r.dims[1], 0);
+        }
+        let below = p[2] > r.origin[2];
+        let top = p[2] == self.dims[2] - 1;
+        let n = below as usize + top as usize;
+        let (own, _) = self.map.voxel_copies(p);
+        let module = &mut self.modules[own[0].0.module as usize];
+        if module.writes_pending() + n > self.config.address_fifo_depth {
+            return false;
+        }
+        if below {
+            let (word, _) = self.map.voxel_copies([p[0], p[1], p[2] - 1]);
+            module.push_write(
+                PendingWrite {
+                    addr: word[0].0,
+                    data: self.slice[at] as u32 | (value as u32) << 16,
+                    mask: 3,
+                },
+                self.now,
+            );
+        }
+        if top {
+            module.push_write(
+                PendingWrite {
+                    addr: own[0].0,
+                    data: value as u32,
+                    mask: 1,
+                },
+                self.now,
+            );
+        }
+        self.slice[at] = value;
+        true
     }
 
     /// Reads the whole volume through the read path and rebuilds every table entry exactly:

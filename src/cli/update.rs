@@ -73,7 +73,7 @@ pub fn run(args: UpdateArgs) -> Result<()> {
         report.host_link_mb_per_s
     );
     println!(
-        "download: {} voxels, {} host bytes; {} cycles ({:.2} ms; host link bound {} cycles), \
+        "download in volume order: {} voxels, {} host bytes; {} cycles ({:.2} ms; host link bound {} cycles), \
          {} WRITEs ({:.2} per voxel, {} row misses), write stalls {} cycles; \
          map during the update: +{} cycles, exact",
         d.voxels_written,
@@ -86,6 +86,20 @@ pub fn run(args: UpdateArgs) -> Result<()> {
         d.write_row_misses,
         d.write_stall_cycles,
         d.map_cycles
+    );
+    let d = &report.download_tiled;
+    println!(
+        "download in tiles: {} regions, {} host bytes; {} cycles ({:.2} ms; host link bound {} \
+         cycles), {} WRITEs ({:.2} per voxel, {} row misses), write stalls {} cycles",
+        d.regions,
+        d.host_bytes,
+        d.write_cycles,
+        ms(d.write_cycles),
+        d.host_link_cycles,
+        d.writes,
+        d.writes_per_voxel,
+        d.write_row_misses,
+        d.write_stall_cycles
     );
     let s = &report.scan;
     println!(
@@ -126,6 +140,6 @@ pub fn run(args: UpdateArgs) -> Result<()> {
             p.widen_stale_subcubes
         );
     }
-    println!("maps checked against OccupancyMap::build: equal after the download and the scan");
+    println!("maps checked against OccupancyMap::build: equal after each download and the scan");
     Ok(())
 }
