@@ -439,3 +439,194 @@ fn bad_input_gives_clear_errors() {
         .to_string();
     assert!(err.contains("memory.rows"), "{err}");
 }
+
+/// A small deterministic generator (xorshift), so the random updates are the same every run.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n as u64) as usize
+    }
+}
+
+#[test]
+fn random_partial_updates_keep_memory_and_maps_right_after_every_step() {
+    let tf = table(&band_tf(50.0, 150.0));
+    let dims = [24, 20, 28];
+    let start = Volume::new(
+        "start",
+        dims,
+        [1.0; 3],
+        8,
+        (0..dims.iter().product::<usize>())
+            .map(|i| ((i * 37) % 5 * 60) as u16)
+            .collect(),
+    )
+    .unwrap();
+    let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+    for (mapping, log2, reach) in [
+        (Mapping::Replicated4, 2, 0),
+        (Mapping::Interleaved8, 1, 1),
+        (Mapping::Linear4, 3, 1),
+    ] {
+        for policy in [PartialMapPolicy::Widen, PartialMapPolicy::Rescan] {
+            let what = format!("{mapping:?} s={} reach {reach} {policy:?}", 1 << log2);
+            let mut engine = UpdateEngine::new(&config(mapping), dims, 8, log2, reach).unwrap();
+            engine.update(&VolumeUpdate::full(&start), policy).unwrap();
+            let mut reference = start.clone();
+            for step in 0..6 {
+                let mut regions = Vec::new();
+                for _ in 0..1 + rng.below(6) {
+                    let e = [0, 1, 2].map(|a| 1 + rng.below(dims[a].min(12)));
+                    let o = [0, 1, 2].map(|a| rng.below(dims[a] - e[a] + 1));
+                    // Mostly empty (to clear bits), sometimes a constant, sometimes noise.
+                    let kind = rng.below(3);
+                    let values = (0..e.iter().product::<usize>())
+                        .map(|_| match kind {
+                            0 => 0,
+                            1 => 100,
+                            _ => rng.below(256) as u16,
+                        })
+                        .collect();
+                    regions.push(Region {
+                        origin: o,
+                        dims: e,
+                        values,
+                    });
+                }
+                let update = VolumeUpdate {
+                    regions,
+                    ..VolumeUpdate::default()
+                };
+                let report = engine.update(&update, policy).unwrap();
+                update.apply_to(&mut reference);
+                let what = format!("{what} step {step}");
+                assert_eq!(
+                    engine.memory_volume("m").unwrap().data,
+                    reference.data,
+                    "{what}"
+                );
+                assert_eq!(report.voxels_written, update.voxels_written());
+                let exact = report.map_exact;
+                assert_eq!(
+                    exact,
+                    policy == PartialMapPolicy::Rescan || report.subcubes_partial == 0
+                );
+                assert_maps(&engine, &reference, log2, reach, &tf, exact, &what);
+            }
+        }
+    }
+}
+
+#[test]
+fn sleeping_controllers_equal_ticking_ones_for_writes_and_scans() {
+    let volume = metaballs(24, 0.5);
+    let next = metaballs(24, 0.8);
+    let run = |sleeping: bool| {
+        let hw = config(Mapping::Replicated4);
+        let engine = UpdateEngine::new(&hw, volume.dims, 8, 2, 0).unwrap();
+        let mut engine = if sleeping {
+            engine
+        } else {
+            engine.without_sleeping()
+        };
+        let a = engine
+            .update(&VolumeUpdate::full(&volume), PartialMapPolicy::Widen)
+            .unwrap();
+        let b = engine
+            .update(
+                &VolumeUpdate::full_tiled(&volume, &hw.memory),
+                PartialMapPolicy::Widen,
+            )
+            .unwrap();
+        let update = vizsim::dynamic::changed_bricks(&volume, &next, 4).unwrap();
+        let c = engine.update(&update, PartialMapPolicy::Rescan).unwrap();
+        let d = engine.scan();
+        (a, b, c, d, engine.module_stats(), engine.now())
+    };
+    let (sleeping, ticking) = (run(true), run(false));
+    assert!(sleeping.4.iter().all(|s| s.refreshes > 0));
+    assert_eq!(format!("{sleeping:?}"), format!("{ticking:?}"));
+}
+
+fn vizsim(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn the_update_command_prints_the_costs_and_rejects_bad_input() {
+    let out = vizsim(&[
+        "update",
+        "phantom:metaballs:32",
+        "--subcube",
+        "4",
+        "--next",
+        "phantom:metaballs:32:t=0.2",
+        "--brick",
+        "4",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["scan"]["requests"], 16 * 16 * 16);
+    assert_eq!(report["download"]["map_exact"], true);
+    assert_eq!(report["partial"]["rescan"]["map_exact"], true);
+    assert_eq!(report["partial"]["widen"]["map_exact"], false);
+    for (args, wanted) in [
+        (
+            vec![
+                "update",
+                "phantom:sphere:32",
+                "--subcube",
+                "4",
+                "--set",
+                "memory.host_link_mhz=0",
+            ],
+            "memory.host_link_mhz",
+        ),
+        (
+            vec![
+                "update",
+                "phantom:sphere:32",
+                "--subcube",
+                "4",
+                "--next",
+                "phantom:sphere:16",
+            ],
+            "equal extents",
+        ),
+        (vec!["update", "phantom:sphere:32"], "--subcube"),
+        (
+            vec![
+                "update",
+                "phantom:sphere:32",
+                "--subcube",
+                "4",
+                "--brick",
+                "0",
+            ],
+            "brick",
+        ),
+    ] {
+        let out = vizsim(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(wanted),
+            "{args:?}: {err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+    }
+}

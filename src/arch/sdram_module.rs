@@ -201,6 +201,13 @@ impl SdramModule {
         self.image.as_ref()
     }
 
+    /// A controller that runs every cycle instead of sleeping: the reference that sleeping
+    /// must equal (tests).
+    pub fn without_sleeping(mut self) -> SdramModule {
+        self.sleeps = false;
+        self
+    }
+
     /// Whether the write FIFO has a free place.
     pub fn can_accept_write(&self) -> bool {
         self.writes.len() < self.write_depth

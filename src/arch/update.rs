@@ -537,6 +537,22 @@ impl UpdateEngine {
         })
     }
 
+    /// Module controllers that run every cycle instead of sleeping until their next possible
+    /// command: the reference that sleeping must equal (tests).
+    pub fn without_sleeping(mut self) -> UpdateEngine {
+        self.modules = self
+            .modules
+            .into_iter()
+            .map(SdramModule::without_sleeping)
+            .collect();
+        self
+    }
+
+    /// Per-module statistics (reads, writes, row misses, refreshes, ...).
+    pub fn module_stats(&self) -> Vec<super::sdram_module::ModuleStats> {
+        self.modules.iter().map(SdramModule::final_stats).collect()
+    }
+
     pub fn now(&self) -> u64 {
         self.now
     }
