@@ -216,7 +216,7 @@ fn write_timing_is_validated_and_optional_in_files() {
 /// Runs a module until its FIFOs are empty; returns the last cycle stepped.
 fn drain(m: &mut SdramModule, from: u64) -> u64 {
     for now in from..from + 10_000 {
-        m.step(now);
+        m.step_with_writes(now);
         m.pop_word(now);
         if m.is_idle() {
             return now;
@@ -270,7 +270,7 @@ fn writes_store_their_data_and_cost_what_the_timing_says() {
     m.push_write(word(0, 3, 1, 1, 1), conflict);
     let mut read_at = None;
     for now in conflict + 1..conflict + 100 {
-        m.step(now);
+        m.step_with_writes(now);
         if let Some(c) = m.issued_at(now) {
             match c.kind {
                 vizsim::arch::sdram::CommandKind::Read => read_at = Some(now),

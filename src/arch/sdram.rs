@@ -318,15 +318,45 @@ struct Bank {
 }
 
 /// The rule table resolved for `issue`, per preceding command kind: the largest latency it
-/// imposes on each following kind in its own bank, in the other banks, and in every bank
-/// (0 = no rule). Every-bank rules are kept once per module rather than per bank.
+/// imposes on each following kind in its own bank, in the other banks, and in every bank.
+/// Every-bank rules are kept once per module rather than per bank.
 #[derive(Clone, Copy, Debug, Default)]
 struct Effects {
-    same: [u32; KINDS],
-    other: [u32; KINDS],
-    all: [u32; KINDS],
-    /// Whether `other` has any rule (most commands have none: skip the bank loop).
-    has_other: bool,
+    same: Raise,
+    other: Raise,
+    all: Raise,
+}
+
+/// The following kinds one scope of a preceding command constrains, and by how much: only the
+/// kinds with a rule, so issuing a command touches no slot it does not constrain (the WRITE
+/// rules cost the read path nothing).
+#[derive(Clone, Copy, Debug, Default)]
+struct Raise {
+    n: usize,
+    slot: [u8; KINDS],
+    latency: [u32; KINDS],
+}
+
+impl Raise {
+    /// Adds a rule: the largest latency per following kind holds.
+    fn add(&mut self, following: usize, latency: u32) {
+        match (0..self.n).find(|&i| self.slot[i] as usize == following) {
+            Some(i) => self.latency[i] = self.latency[i].max(latency),
+            None => {
+                self.slot[self.n] = following as u8;
+                self.latency[self.n] = latency;
+                self.n += 1;
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn apply(&self, earliest: &mut [u64; KINDS], now: u64) {
+        for i in 0..self.n {
+            let slot = &mut earliest[self.slot[i] as usize];
+            *slot = (*slot).max(now + self.latency[i] as u64);
+        }
+    }
 }
 
 /// The banks of one module with their timing state.
@@ -358,11 +388,7 @@ impl SdramDevice {
                 Scope::OtherBanks => &mut e.other,
                 Scope::AllBanks => &mut e.all,
             };
-            let slot = &mut table[rule.following.index()];
-            *slot = (*slot).max(rule.latency);
-        }
-        for e in &mut effects {
-            e.has_other = e.other.iter().any(|&l| l > 0);
+            table.add(rule.following.index(), rule.latency);
         }
         SdramDevice {
             banks: vec![
@@ -421,21 +447,14 @@ impl SdramDevice {
     /// Issues a legal command at `now`: applies every rule it precedes and its state change.
     pub fn issue(&mut self, cmd: Command, now: u64) {
         debug_assert!(self.is_legal(cmd, now), "illegal {cmd:?} at {now}");
-        fn raise(earliest: &mut [u64; KINDS], latencies: &[u32; KINDS], now: u64) {
-            for (slot, &latency) in earliest.iter_mut().zip(latencies) {
-                if latency > 0 {
-                    *slot = (*slot).max(now + latency as u64);
-                }
-            }
-        }
-        let effects = self.effects[cmd.kind().index()];
-        raise(&mut self.all_banks, &effects.all, now);
+        let effects = &self.effects[cmd.kind().index()];
+        effects.all.apply(&mut self.all_banks, now);
         if let Some(own) = cmd.bank() {
-            raise(&mut self.banks[own].earliest, &effects.same, now);
-            if effects.has_other {
+            effects.same.apply(&mut self.banks[own].earliest, now);
+            if effects.other.n > 0 {
                 for (b, bank) in self.banks.iter_mut().enumerate() {
                     if b != own {
-                        raise(&mut bank.earliest, &effects.other, now);
+                        effects.other.apply(&mut bank.earliest, now);
                     }
                 }
             }

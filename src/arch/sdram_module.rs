@@ -16,9 +16,9 @@
 //! `memory.address_fifo_depth`) and are served only when no read is queued (reads first: the
 //! renderer waits for them): WRITE if the row is open, else PRE, else ACT, under the same timing
 //! table. A module given a memory image (`with_image`) stores each WRITE's data in it at the
-//! WRITE's cycle, so the image is what the command sequence left in the SDRAM. A read-only
-//! simulation never reaches the write path (it is tested only where the read path would
-//! already have returned idle).
+//! WRITE's cycle, so the image is what the command sequence left in the SDRAM. The write path
+//! runs only under `step_with_writes`; the pipeline's `step` compiles without it, so a
+//! read-only simulation does the same work as before writes existed.
 
 use std::collections::VecDeque;
 
@@ -291,8 +291,22 @@ impl SdramModule {
     /// command waits for a timing rule, or it is idle until the next refresh) sleeps until
     /// then; a push wakes it. Sleeping is exact: the cycles slept through are counted as
     /// ticking would count them (tests/sdram.rs compares both).
+    ///
+    /// The read path's step: the write FIFO is not looked at (the pipeline never writes), so
+    /// the controller compiles to the read-only code. `step_with_writes` serves both.
     #[inline]
     pub fn step(&mut self, now: u64) {
+        debug_assert!(self.writes.is_empty(), "writes need step_with_writes");
+        self.step_generic::<false>(now)
+    }
+
+    /// `step` for a module that also writes (volume updates): reads first, then writes.
+    pub fn step_with_writes(&mut self, now: u64) {
+        self.step_generic::<true>(now)
+    }
+
+    #[inline(always)]
+    fn step_generic<const WRITES: bool>(&mut self, now: u64) {
         if now < self.wake_at {
             return;
         }
@@ -301,24 +315,24 @@ impl SdramModule {
         }
         self.last_step = now;
         let wake = if self.sleeps {
-            self.control(now)
+            self.control::<WRITES>(now)
         } else {
-            self.control(now);
+            self.control::<WRITES>(now);
             now + 1
         };
         self.wake_at = wake.min(self.next_refresh);
         self.busy_while_asleep =
-            !self.fifo.is_empty() || self.refresh_pending || !self.writes.is_empty();
+            !self.fifo.is_empty() || self.refresh_pending || (WRITES && !self.writes.is_empty());
     }
 
     /// The controller's decision in cycle `now`; returns the next cycle it must run again
-    /// (absent pushes).
-    fn control(&mut self, now: u64) -> u64 {
+    /// (absent pushes). With `WRITES` false (the read path) the write FIFO is not looked at.
+    fn control<const WRITES: bool>(&mut self, now: u64) -> u64 {
         if now >= self.next_refresh {
             self.refresh_pending = true;
             self.next_refresh += self.refresh_interval.unwrap_or(u64::MAX);
         }
-        if !self.fifo.is_empty() || self.refresh_pending || !self.writes.is_empty() {
+        if !self.fifo.is_empty() || self.refresh_pending || (WRITES && !self.writes.is_empty()) {
             self.stats.busy_cycles += 1;
         }
         if self.refresh_pending {
@@ -354,8 +368,8 @@ impl SdramModule {
         let pending_close = self.policy == RowPolicy::Close && self.to_close.iter().any(|&c| c);
         let device = &self.device;
         let Some(index) = self.fifo.select(|a| device.row_is_open(a.bank, a.row)) else {
-            if !self.writes.is_empty() {
-                return self.control_write(now, pending_close);
+            if WRITES && !self.writes.is_empty() {
+                return self.control_write_path(now, pending_close);
             }
             return if pending_close { now + 1 } else { u64::MAX };
         };
@@ -405,6 +419,14 @@ impl SdramModule {
             }
         }
         now + 1
+    }
+
+    /// The write path's decision (no read queued). Kept out of line: the read path's `control`
+    /// stays as small (and as inlined) as without writes.
+    #[cold]
+    #[inline(never)]
+    fn control_write_path(&mut self, now: u64, pending_close: bool) -> u64 {
+        self.control_write(now, pending_close)
     }
 
     /// The write path's decision (no read queued): the oldest write's WRITE if its row is

@@ -581,7 +581,7 @@ impl UpdateEngine {
 
     fn step_modules(&mut self) {
         for m in &mut self.modules {
-            m.step(self.now);
+            m.step_with_writes(self.now);
         }
     }
 
@@ -945,7 +945,7 @@ impl UpdateEngine {
                 next += 1;
             }
             for m in 0..self.modules.len() {
-                self.modules[m].step(self.now);
+                self.modules[m].step_with_writes(self.now);
                 if let Some(tag) = self.modules[m].pop_word(self.now) {
                     let slot = tag as usize;
                     missing[slot] -= 1;

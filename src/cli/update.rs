@@ -33,7 +33,10 @@ pub struct UpdateArgs {
 
 pub fn run(args: UpdateArgs) -> Result<()> {
     use vizsim::functional::arith::ClassificationTable;
-    anyhow::ensure!(args.brick >= 1, "--brick 0: the brick edge must be at least 1");
+    anyhow::ensure!(
+        args.brick >= 1,
+        "--brick 0: the brick edge must be at least 1"
+    );
     let config = args.hardware.load(&[])?;
     let subcube = args
         .hardware
