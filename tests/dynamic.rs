@@ -630,3 +630,54 @@ fn the_update_command_prints_the_costs_and_rejects_bad_input() {
         assert!(!err.contains("panicked"), "{err}");
     }
 }
+
+#[test]
+fn a_sixteen_bit_volume_costs_two_link_bytes_per_voxel_and_keeps_exact_maps() {
+    let dims = [20, 18, 22];
+    let data: Vec<u16> = (0..dims.iter().product::<usize>())
+        .map(|i| if i % 7 < 3 { 0 } else { (i * 2654) as u16 })
+        .collect();
+    let volume = Volume::new("sixteen", dims, [1.0; 3], 16, data).unwrap();
+    let tf = common::tf(&[
+        (0.0, [0.0; 4]),
+        (20000.0, [0.0; 4]),
+        (30000.0, [1.0, 1.0, 1.0, 0.5]),
+        (40000.0, [0.0; 4]),
+        (65535.0, [0.0; 4]),
+    ]);
+    let table = ClassificationTable::build(&tf, 65536, 12, 1.0);
+    for mapping in [Mapping::Replicated4, Mapping::Interleaved8] {
+        let hw = config(mapping);
+        let mut engine = UpdateEngine::new(&hw, dims, 16, 2, 0).unwrap();
+        let r = engine
+            .update(
+                &VolumeUpdate::full_tiled(&volume, &hw.memory),
+                PartialMapPolicy::Widen,
+            )
+            .unwrap();
+        assert_eq!(r.host_bytes, 2 * r.voxels_written + 12 * r.regions);
+        assert_eq!(engine.memory_volume("m").unwrap().data, volume.data);
+        assert_maps(
+            &engine,
+            &volume,
+            2,
+            0,
+            &table,
+            true,
+            &format!("{mapping:?} 16-bit"),
+        );
+        let scan = engine.scan();
+        let costs = engine.tf_change_costs(scan.cycles);
+        assert_eq!(costs.table_bits, 5 * 5 * 6 * 32);
+        assert_eq!(costs.prefix_cycles, 65536);
+        assert_maps(
+            &engine,
+            &volume,
+            2,
+            0,
+            &table,
+            true,
+            &format!("{mapping:?} scan"),
+        );
+    }
+}
