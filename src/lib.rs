@@ -8,6 +8,7 @@ pub mod arch;
 pub mod camera;
 pub mod compare;
 pub mod config;
+pub mod dynamic;
 pub mod error;
 pub mod experiment;
 pub mod figures;

@@ -47,6 +47,17 @@ pub struct OccupancyMap {
     groups: Vec<u8>,
 }
 
+/// The voxels (inclusive, per axis) whose values decide the bit of sub-cube `c` along an axis of
+/// `dim` voxels: [s·c − reach, s·c + s + reach] clamped to the volume (s = 2^cube_log2), the
+/// one-voxel dilation of trilinear interpolation plus the gradient stencil's reach.
+#[inline]
+pub fn dilated_range(c: usize, cube_log2: u32, reach: usize, dim: usize) -> (usize, usize) {
+    let s = 1usize << cube_log2;
+    let lo = (c * s).saturating_sub(reach);
+    let hi = (c * s + s + reach).min(dim - 1);
+    (lo, hi)
+}
+
 /// Checks a sub-cube size against the supported sizes and the volume.
 pub fn check_subcube_size(size: usize, volume_dims: [usize; 3]) -> Result<u32> {
     if !SUBCUBE_SIZES.contains(&size) {
@@ -81,11 +92,7 @@ impl OccupancyMap {
         // Per-axis voxel ranges of each sub-cube's dilated block.
         let ranges: [Vec<(usize, usize)>; 3] = [0, 1, 2].map(|a| {
             (0..dims[a])
-                .map(|c| {
-                    let lo = (c * s).saturating_sub(stencil_reach);
-                    let hi = (c * s + s + stencil_reach).min(vd[a] - 1);
-                    (lo, hi)
-                })
+                .map(|c| dilated_range(c, cube_log2, stencil_reach, vd[a]))
                 .collect()
         });
         for cz in 0..dims[2] {
@@ -110,6 +117,18 @@ impl OccupancyMap {
                 }
             }
         }
+        Self::from_cells(cube_log2, dims, cells)
+    }
+
+    /// A map from its bits (one per sub-cube, x fastest, non-zero = occupied), with the
+    /// hierarchy's groups derived from them: maps built elsewhere (`arch::update`, during a
+    /// volume update or from a min/max table).
+    pub fn from_cells(cube_log2: u32, dims: [usize; 3], cells: Vec<u8>) -> OccupancyMap {
+        assert_eq!(
+            cells.len(),
+            dims[0] * dims[1] * dims[2],
+            "one cell per sub-cube"
+        );
         let group_dims = dims.map(|d| d.div_ceil(2));
         let mut groups = vec![0u8; group_dims[0] * group_dims[1] * group_dims[2]];
         for cz in 0..dims[2] {

@@ -17,12 +17,35 @@ fn temporary_path(path: &Path) -> Result<std::path::PathBuf> {
     let file_name = path
         .file_name()
         .ok_or_else(|| Error::Invalid(format!("{}: not a file path", path.display())))?;
-    let tmp = dir.join(format!(
-        ".{}.tmp{}",
-        file_name.to_string_lossy(),
-        std::process::id()
-    ));
-    Ok(tmp)
+    let prefix = format!(".{}.tmp", file_name.to_string_lossy());
+    remove_stale_temporaries(&dir, &prefix);
+    Ok(dir.join(format!("{prefix}{}", std::process::id())))
+}
+
+/// Removes temporaries of earlier writes to the same path whose process is gone (a kill -9
+/// during a write leaves one). Only where /proc tells which processes live; a temporary of a
+/// live process (a concurrent write) is left alone.
+fn remove_stale_temporaries(dir: &Path, prefix: &str) {
+    let proc = Path::new("/proc");
+    if !proc.join("self").exists() {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name
+            .to_str()
+            .and_then(|n| n.strip_prefix(prefix))
+            .and_then(|p| p.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if pid != std::process::id() && !proc.join(pid.to_string()).exists() {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
 }
 
 pub fn write_atomically(

@@ -147,3 +147,32 @@ fn an_absurd_ideal_latency_is_refused() {
         &["ideal memory latency", "1..=1048576"],
     );
 }
+
+/// A kill -9 during an atomic write leaves a hidden temporary; the next write to the same path
+/// removes it when its process is gone, and leaves a live process's temporary alone.
+#[test]
+fn stale_temporaries_of_a_killed_write_are_cleaned_on_the_next_write() {
+    if !std::path::Path::new("/proc/self").exists() {
+        eprintln!("skipped: no /proc to tell live processes");
+        return;
+    }
+    let dir = scratch("stale-tmp");
+    let mut gone = Command::new("true").spawn().unwrap();
+    let dead_pid = gone.id();
+    gone.wait().unwrap();
+    let stale = dir.join(format!(".out.json.tmp{dead_pid}"));
+    let mut running = Command::new("sleep").arg("30").spawn().unwrap();
+    let live = dir.join(format!(".out.json.tmp{}", running.id()));
+    let other = dir.join(format!(".other.json.tmp{dead_pid}"));
+    for f in [&stale, &live, &other] {
+        std::fs::write(f, b"half a file").unwrap();
+    }
+    let out = dir.join("out.json");
+    vizsim::output::write_json(&out, &serde_json::json!({"a": 1})).unwrap();
+    assert!(out.exists());
+    assert!(!stale.exists(), "the dead process's temporary is removed");
+    assert!(live.exists(), "a live process's temporary stays");
+    assert!(other.exists(), "temporaries of other paths stay");
+    running.kill().unwrap();
+    running.wait().unwrap();
+}

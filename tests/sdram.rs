@@ -5,8 +5,8 @@ mod common;
 
 use vizsim::arch::address_map::{AddressMap, Mapping, MemoryConfig, RowPolicy, WordAddress};
 use vizsim::arch::pipeline::simulate;
-use vizsim::arch::sdram::{timing_rules, Command, SdramDevice, SdramTiming};
-use vizsim::arch::sdram_module::{SdramMemory, SdramModule};
+use vizsim::arch::sdram::{read_path_rules, timing_rules, Command, SdramDevice, SdramTiming};
+use vizsim::arch::sdram_module::{PendingWrite, SdramMemory, SdramModule};
 use vizsim::camera::{Projection, View};
 use vizsim::config::HardwareConfig;
 use vizsim::functional::renderer::{FixedRenderer, Leaping};
@@ -98,8 +98,192 @@ fn every_timing_rule_is_tight() {
     d.issue(read(0), t0 + c(t.t_rcd));
     assert!(!d.is_legal(pre(0), t0 + c(t.t_rcd)));
     assert_eq!(d.earliest(pre(0)), t0 + c(t.t_rcd) + 1, "READ->PRE");
-    // The ten rules of the table, each exercised above.
-    assert_eq!(timing_rules(&t).len(), 10);
+    // The ten read-path rules of the table, each exercised above; the five write rules in
+    // `every_write_timing_rule_is_tight`.
+    assert_eq!(read_path_rules(&t).len(), 10);
+    assert_eq!(timing_rules(&t).len(), 15);
+}
+
+#[test]
+fn every_write_timing_rule_is_tight() {
+    let t = timing();
+    let act = |bank, row| Command::Act { bank, row };
+    let read = |bank| Command::Read { bank, column: 0 };
+    let write = |bank| Command::Write { bank, column: 3 };
+    let pre = |bank| Command::Pre { bank };
+    let t0 = 10u64;
+    let c = |x: u32| x as u64;
+    assert_tight(
+        &[(act(0, 1), t0)],
+        write(0),
+        t0 + c(t.t_rcd),
+        "ACT->WRITE tRCD",
+    );
+    let w = t0 + 20; // every ACT rule long satisfied
+    assert_tight(
+        &[(act(0, 1), t0), (act(1, 1), t0 + 5), (write(0), w)],
+        write(1),
+        w + c(t.t_ccd),
+        "WRITE->WRITE tCCD (data bus)",
+    );
+    assert_tight(
+        &[(act(0, 1), t0), (write(0), w)],
+        pre(0),
+        w + c(t.t_wr),
+        "WRITE->PRE tWR",
+    );
+    assert_tight(
+        &[(act(0, 1), t0), (act(1, 1), t0 + 5), (write(0), w)],
+        read(1),
+        w + c(t.t_wtr),
+        "WRITE->READ tWTR",
+    );
+    assert_tight(
+        &[(act(0, 1), t0), (act(1, 1), t0 + 5), (read(0), w)],
+        write(1),
+        w + c(t.t_rtw),
+        "READ->WRITE tRTW",
+    );
+    // Each rule at a longer setting, so none hides behind another or the command bus.
+    let mut long = t.clone();
+    (long.t_wr, long.t_wtr, long.t_rtw, long.t_ccd) = (6, 5, 7, 3);
+    let tight_with = |setup: &[(Command, u64)], follow: Command, at: u64, rule: &str| {
+        let mut d = SdramDevice::new(4, &long);
+        for &(cmd, when) in setup {
+            d.issue(cmd, when);
+        }
+        assert!(!d.is_legal(follow, at - 1), "{rule}: legal one cycle early");
+        assert!(d.is_legal(follow, at), "{rule}: illegal on time");
+    };
+    let both = [(act(0, 1), t0), (act(1, 1), t0 + 5)];
+    tight_with(&[both[0], (write(0), w)], pre(0), w + 6, "tWR 6");
+    tight_with(&[both[0], both[1], (write(0), w)], read(1), w + 5, "tWTR 5");
+    tight_with(&[both[0], both[1], (read(0), w)], write(1), w + 7, "tRTW 7");
+    tight_with(
+        &[both[0], both[1], (write(0), w)],
+        write(1),
+        w + 3,
+        "tCCD 3",
+    );
+    // State: a WRITE needs its bank's row open.
+    let d = SdramDevice::new(4, &t);
+    assert!(!d.is_legal(write(0), 100), "WRITE on a closed bank");
+}
+
+#[test]
+fn write_timing_is_validated_and_optional_in_files() {
+    let err = HardwareConfig::load(None, &["sdram.t_wr=0".into()])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("sdram.t_wr") && err.contains("1..=64"),
+        "{err}"
+    );
+    let err = HardwareConfig::load(None, &["sdram.t_rtw=2".into()])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("sdram.t_rtw") && err.contains("cl + 1"),
+        "{err}"
+    );
+    for field in ["memory.host_link_bits=0", "memory.host_link_mhz=0.0"] {
+        let err = HardwareConfig::load(None, &[field.into()])
+            .unwrap_err()
+            .to_string();
+        let name = field.split('=').next().unwrap();
+        assert!(err.contains(name) && err.contains("zero"), "{err}");
+    }
+    // A file without the new fields (an older configuration) reads with the defaults, and the
+    // resolved configuration serialises without them: run keys are unchanged.
+    let old: String = vizsim::config::DEFAULT_TOML
+        .lines()
+        .filter(|l| {
+            !["t_wr", "t_wtr", "t_rtw", "host_link_"]
+                .iter()
+                .any(|f| l.starts_with(f))
+        })
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let config = HardwareConfig::from_toml_str(&old, "old.toml", &[]).unwrap();
+    assert_eq!(config, HardwareConfig::default_config());
+    let json = serde_json::to_string(&config).unwrap();
+    for field in ["t_wr", "t_wtr", "t_rtw", "host_link"] {
+        assert!(!json.contains(field), "{field} in {json}");
+    }
+    assert_eq!(config.memory.host_link_bytes_per_second(), 132e6);
+}
+
+/// Runs a module until its FIFOs are empty; returns the last cycle stepped.
+fn drain(m: &mut SdramModule, from: u64) -> u64 {
+    for now in from..from + 10_000 {
+        m.step_with_writes(now);
+        m.pop_word(now);
+        if m.is_idle() {
+            return now;
+        }
+    }
+    panic!("module never idle");
+}
+
+#[test]
+fn writes_store_their_data_and_cost_what_the_timing_says() {
+    let mut t = timing();
+    t.refresh = false;
+    let config = memory_config();
+    let mut m = SdramModule::new(&config, &t).with_image(config.banks, 4, config.columns);
+    let word = |bank, row, column, data, mask| PendingWrite {
+        addr: WordAddress {
+            module: 0,
+            bank,
+            row,
+            column,
+        },
+        data,
+        mask,
+    };
+    // Closed bank: pushed at 0, seen at 1: ACT at 1, WRITE at 1 + tRCD.
+    m.push_write(word(0, 2, 5, 0x0011_0022, 3), 0);
+    let done = drain(&mut m, 1);
+    assert_eq!(
+        done,
+        1 + t.t_rcd as u64,
+        "closed bank: ACT then WRITE tRCD later"
+    );
+    // Byte masks: only the high half changes.
+    m.push_write(word(0, 2, 5, 0x0077_0099, 2), done);
+    let hit = drain(&mut m, done + 1);
+    assert_eq!(hit, done + 1, "row hit: WRITE the cycle it is seen");
+    let image = m.image().unwrap();
+    assert_eq!(image.word(word(0, 2, 5, 0, 0).addr), 0x0077_0022);
+    // A write to another row of the bank: PRE waits for tWR after the last WRITE.
+    m.push_write(word(0, 3, 0, 1, 1), hit);
+    let conflict = drain(&mut m, hit + 1);
+    assert_eq!(
+        conflict,
+        (hit + t.t_wr as u64).max(hit + 1) + (t.t_rp + t.t_rcd) as u64,
+        "row conflict: tWR, then tRP + tRCD"
+    );
+    let stats = m.final_stats();
+    assert_eq!((stats.writes, stats.write_row_misses), (3, 2));
+    // Reads go first; a write after a read waits for tRTW.
+    m.push(9, addr(0, 3), conflict);
+    m.push_write(word(0, 3, 1, 1, 1), conflict);
+    let mut read_at = None;
+    for now in conflict + 1..conflict + 100 {
+        m.step_with_writes(now);
+        if let Some(c) = m.issued_at(now) {
+            match c.kind {
+                vizsim::arch::sdram::CommandKind::Read => read_at = Some(now),
+                vizsim::arch::sdram::CommandKind::Write => {
+                    assert_eq!(now, read_at.unwrap() + t.t_rtw as u64, "READ->WRITE tRTW");
+                    return;
+                }
+                k => panic!("unexpected {k:?}"),
+            }
+        }
+        m.pop_word(now);
+    }
+    panic!("no WRITE");
 }
 
 #[test]

@@ -196,6 +196,25 @@ fn a_killed_sweep_resumes_to_the_same_results() {
     let mut text = std::fs::read_to_string(&results).unwrap();
     text.push_str("{\"key\":\"deadbeef\",\"dataset\":\"phan");
     std::fs::write(&results, text).unwrap();
+    // And a full disk that tore a timing line, after which appends went on, and a kill
+    // between a result and its time (one result without a time).
+    let timing = killed.join("timing.jsonl");
+    let mut lines: Vec<String> = std::fs::read_to_string(&timing)
+        .unwrap()
+        .lines()
+        .map(str::to_string)
+        .collect();
+    let lost = lines.remove(0);
+    lines.insert(1, "{\"key\":\"0123\",\"wall_sec".into());
+    std::fs::write(&timing, lines.join("\n") + "\n").unwrap();
+    let killed_merge = dir.join("killed-merge");
+    let merged = vizsim(&[
+        "merge",
+        killed.to_str().unwrap(),
+        "--out",
+        killed_merge.to_str().unwrap(),
+    ]);
+    assert!(merged.status.success(), "merge reads a torn timing file");
 
     let resumed = Command::new(BIN).args(args(&killed)).output().unwrap();
     assert!(resumed.status.success());
@@ -210,6 +229,19 @@ fn a_killed_sweep_resumes_to_the_same_results() {
     );
     assert_eq!(a.len(), 144);
     assert!(a == b, "resumed results equal the uninterrupted run");
+    // One wall time per result; the lost one is null, the torn line is gone.
+    let times = sorted_lines(&timing);
+    assert_eq!(times.len(), 144);
+    let lost_key = serde_json::from_str::<serde_json::Value>(&lost).unwrap()["key"].clone();
+    let lost_now: Vec<&String> = times
+        .iter()
+        .filter(|t| serde_json::from_str::<serde_json::Value>(t).unwrap()["key"] == lost_key)
+        .collect();
+    assert_eq!(lost_now.len(), 1);
+    assert!(
+        lost_now[0].contains("\"wall_seconds\":null"),
+        "{lost_now:?}"
+    );
 
     // Running a finished sweep again runs nothing.
     let again = Command::new(BIN).args(args(&whole)).output().unwrap();

@@ -66,6 +66,32 @@ pub struct MemoryConfig {
     /// with every bank bit flipped ("other-bank"). Written out only when not the default.
     #[serde(default, skip_serializing_if = "DistancePlacement::is_same_bank")]
     pub distance_placement: DistancePlacement,
+    /// Host link that feeds volume updates (`arch::update`): data width in bits. Default the
+    /// 32-bit PCI bus of the VIZARD II card. Optional in files, written only when not default.
+    #[serde(
+        default = "default_host_link_bits",
+        skip_serializing_if = "is_default_host_link_bits"
+    )]
+    pub host_link_bits: u32,
+    /// Host link transfer clock in MHz (default 33 MHz PCI: 32 bit × 33 MHz = 132 MB/s peak).
+    #[serde(
+        default = "default_host_link_mhz",
+        skip_serializing_if = "is_default_host_link_mhz"
+    )]
+    pub host_link_mhz: f64,
+}
+
+fn default_host_link_bits() -> u32 {
+    32
+}
+fn is_default_host_link_bits(v: &u32) -> bool {
+    *v == default_host_link_bits()
+}
+fn default_host_link_mhz() -> f64 {
+    33.0
+}
+fn is_default_host_link_mhz(v: &f64) -> bool {
+    *v == default_host_link_mhz()
 }
 
 /// The bank of a distance word relative to its voxel's word (`AddressMap::distance_word`).
@@ -146,6 +172,26 @@ impl MemoryConfig {
                 ),
             );
         }
+        if !(1..=1024).contains(&self.host_link_bits) {
+            return err(
+                "memory.host_link_bits",
+                format!(
+                    "{} is out of range; allowed 1..=1024 bits (a host link of zero bandwidth \
+                     could never deliver an update)",
+                    self.host_link_bits
+                ),
+            );
+        }
+        let mhz = self.host_link_mhz;
+        if !(mhz.is_finite() && mhz > 0.0 && mhz <= 1e5) {
+            return err(
+                "memory.host_link_mhz",
+                format!(
+                    "{mhz} is out of range; allowed (0, 100000] MHz (a host link of zero \
+                     bandwidth could never deliver an update)"
+                ),
+            );
+        }
         if !(1..=self.address_fifo_depth).contains(&self.overtaking_window) {
             return err(
                 "memory.overtaking_window",
@@ -156,6 +202,21 @@ impl MemoryConfig {
             );
         }
         Ok(())
+    }
+
+    /// Peak host-link bandwidth in bytes per second (bits / 8 × clock).
+    pub fn host_link_bytes_per_second(&self) -> f64 {
+        self.host_link_bits as f64 / 8.0 * self.host_link_mhz * 1e6
+    }
+
+    /// Copies of each voxel the layout stores: 2 for the voxel-pair layouts (`replicated4`,
+    /// `linear4`: voxel z is the low half of word z and the high half of word z − 1), 1 for
+    /// `interleaved8`. Every copy costs an SDRAM WRITE when the voxel is written.
+    pub fn replicas(&self) -> usize {
+        match self.mapping {
+            Mapping::Replicated4 | Mapping::Linear4 => 2,
+            Mapping::Interleaved8 => 1,
+        }
     }
 
     pub fn modules(&self) -> usize {
@@ -356,6 +417,34 @@ impl AddressMap {
         word.row += self.distance_row;
         word.bank ^= self.distance_bank_xor;
         word
+    }
+
+    /// The words that hold voxel `p`, with the half of each it occupies (0: low, 1: high): the
+    /// voxel's own word (low half) first, then with the voxel-pair layouts and z > 0 the word
+    /// of z − 1, whose high half repeats it. Writing a voxel writes every copy; the first `n`
+    /// entries are valid.
+    #[inline]
+    pub fn voxel_copies(&self, p: [usize; 3]) -> ([(WordAddress, u8); 2], usize) {
+        let (x, y, z) = (p[0], p[1], p[2]);
+        match self.config.mapping {
+            Mapping::Interleaved8 => {
+                let module = ((x & 1) + 2 * (y & 1) + 4 * (z & 1)) as u32;
+                let w = self.word(module, [x >> 1, y >> 1, z >> 1]);
+                ([(w, 0), (w, 0)], 1)
+            }
+            _ => {
+                let module = ((x & 1) + 2 * (y & 1)) as u32;
+                let own = self.word(module, [x >> 1, y >> 1, z]);
+                if z == 0 {
+                    ([(own, 0), (own, 0)], 1)
+                } else {
+                    (
+                        [(own, 0), (self.word(module, [x >> 1, y >> 1, z - 1]), 1)],
+                        2,
+                    )
+                }
+            }
+        }
     }
 
     #[inline]

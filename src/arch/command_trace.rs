@@ -33,7 +33,7 @@ use std::path::{Path, PathBuf};
 use flate2::write::GzEncoder;
 use flate2::Compression;
 
-use super::sdram::{timing_rules, CommandKind, Scope, SdramTiming, TimingRule};
+use super::sdram::{read_path_rules, CommandKind, Scope, SdramTiming, TimingRule};
 use crate::config::HardwareConfig;
 use crate::error::{Error, Result};
 use crate::output::PendingFile;
@@ -343,7 +343,7 @@ fn header_text(config: &HardwareConfig, window: Option<Range<u64>>) -> String {
     for (name, cycles) in t.parameters() {
         let _ = writeln!(h, "# {name}: {cycles} cycles = {} ns", ns(cycles));
     }
-    for r in timing_rules(t) {
+    for r in read_path_rules(t) {
         let _ = writeln!(
             h,
             "# rule: {} {} {} {} {} ({} ns)",
@@ -398,6 +398,8 @@ fn format_line(out: &mut [u8; LINE_MAX], c: &IssuedCommand, last: &mut CycleText
         CommandKind::Read => (b"READ,", 5),
         CommandKind::Pre => (b"PRE, ", 4),
         CommandKind::Ref => (b"REF, ", 4),
+        // The read path never writes; a WRITE would be written like a READ.
+        CommandKind::Write => (b"WRITE", 5),
     };
     out[n..n + 5].copy_from_slice(name);
     n += len;
@@ -411,7 +413,7 @@ fn format_line(out: &mut [u8; LINE_MAX], c: &IssuedCommand, last: &mut CycleText
     }
     out[n] = b',';
     n += 1;
-    if c.kind == CommandKind::Read {
+    if matches!(c.kind, CommandKind::Read | CommandKind::Write) {
         n = put_u64(out, n, c.column as u64);
         out[n] = b',';
         n = put_u64(out, n + 1, c.tag as u64);
@@ -815,11 +817,12 @@ impl HeaderParser {
             t_rfc: param("t_rfc")?,
             refresh_interval: param("refresh_interval")?,
             refresh: self.refresh.ok_or_else(|| missing("refresh"))?,
+            ..HardwareConfig::default_config().sdram
         };
         // The rule lines must be the table the parameters give (a trace from another table
         // would be checked against rules it was not written under).
         if !self.rules.is_empty() {
-            let table: Vec<_> = timing_rules(&timing)
+            let table: Vec<_> = read_path_rules(&timing)
                 .into_iter()
                 .map(|r| {
                     (
@@ -869,7 +872,9 @@ fn parse_command(text: &str, h: &TraceHeader) -> std::result::Result<IssuedComma
     if next().is_some() {
         return Err(format!("`{text}`: more than 7 fields ({COLUMNS})"));
     }
+    // Traces record the read path: a WRITE is not one of its commands.
     let kind = CommandKind::from_name(kind)
+        .filter(|&k| k != CommandKind::Write)
         .ok_or_else(|| format!("`{text}`: unknown command `{kind}` (ACT, READ, PRE, REF)"))?;
     let number = |name: &str, s: &str, limit: u64| -> std::result::Result<Option<u64>, String> {
         if s.is_empty() {
@@ -898,7 +903,7 @@ fn parse_command(text: &str, h: &TraceHeader) -> std::result::Result<IssuedComma
     ];
     let wanted = match kind {
         CommandKind::Act | CommandKind::Pre => [true, true, false, false],
-        CommandKind::Read => [true; 4],
+        CommandKind::Read | CommandKind::Write => [true; 4],
         CommandKind::Ref => [false; 4],
     };
     if has != wanted {
@@ -907,7 +912,7 @@ fn parse_command(text: &str, h: &TraceHeader) -> std::result::Result<IssuedComma
             kind.name(),
             match kind {
                 CommandKind::Act | CommandKind::Pre => "bank, row",
-                CommandKind::Read => "bank, row, column, tag",
+                CommandKind::Read | CommandKind::Write => "bank, row, column, tag",
                 CommandKind::Ref => "none of bank, row, column, tag",
             }
         ));
@@ -968,7 +973,7 @@ impl Checker {
         };
         let banks = header.banks as usize;
         Checker {
-            rules: timing_rules(&header.timing)
+            rules: read_path_rules(&header.timing)
                 .into_iter()
                 .map(|rule| RuleCheck {
                     rule,
@@ -1194,7 +1199,9 @@ impl Checker {
             (kind, Some(b)) => {
                 state.last[b][k] = Some((c.cycle, line));
                 match kind {
-                    CommandKind::Act | CommandKind::Read => state.rows[b] = Row::Open(c.row),
+                    CommandKind::Act | CommandKind::Read | CommandKind::Write => {
+                        state.rows[b] = Row::Open(c.row)
+                    }
                     CommandKind::Pre => state.rows[b] = Row::Closed,
                     CommandKind::Ref => {}
                 }

@@ -12,4 +12,5 @@ pub mod sdram;
 pub mod sdram_module;
 pub mod skip_unit;
 pub mod trace;
+pub mod update;
 pub mod voxel_memory;

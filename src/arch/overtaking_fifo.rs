@@ -115,6 +115,7 @@ impl OvertakingFifo {
     }
 
     /// Removes the request at `index` to be served; every older request was overtaken.
+    #[inline(always)]
     pub fn take(&mut self, index: usize) -> PendingWord {
         if index > 0 {
             self.overtakes += 1;

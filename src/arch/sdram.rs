@@ -2,6 +2,13 @@
 //! one row of `timing_rules` — {preceding command, following command, scope, latency} — and
 //! issuing a command raises the "earliest legal cycle" of the commands it constrains. One
 //! command per cycle per module (the command bus). PC100 2-2-2 defaults (brief, section 4).
+//!
+//! WRITE (burst length 1, data registered with the command, as in SDR SDRAM) shares the table:
+//! ACT -> WRITE tRCD, WRITE -> WRITE tCCD (data bus, one word per cycle), WRITE -> PRE tWR
+//! (write recovery), WRITE -> READ tWTR and READ -> WRITE tRTW (data-bus turnaround: the read
+//! data is on the bus CL cycles after its READ). The read path never issues a WRITE, so these
+//! rules never fire in a read-only simulation (command traces, which record the read path,
+//! list only the read rules: `read_path_rules`).
 
 use serde::{Deserialize, Serialize};
 
@@ -30,10 +37,52 @@ pub struct SdramTiming {
     pub refresh_interval: u32,
     /// Model refresh at all.
     pub refresh: bool,
+    /// WRITE to PRE, same bank (write recovery, tWR / tDPL): PC100 needs 15 ns, 2 cycles at
+    /// 100 MHz. The write fields are optional in configuration files (defaults here) and written
+    /// out only when not the default, so read-only configurations and run keys are unchanged.
+    #[serde(default = "default_t_wr", skip_serializing_if = "is_default_t_wr")]
+    pub t_wr: u32,
+    /// WRITE to READ, any bank of the module (write-to-read turnaround, tWTR). SDR SDRAM
+    /// registers the write data with the command, so 1 (the next cycle).
+    #[serde(default = "default_t_wtr", skip_serializing_if = "is_default_t_wtr")]
+    pub t_wtr: u32,
+    /// READ to WRITE, any bank of the module (read-to-write turnaround, tRTW): the read's data
+    /// occupies the data bus CL cycles after the READ, then one idle cycle before the write
+    /// data may drive it: CL + 1 (burst) + 1 = 4 at CL 2. Must exceed `cl`.
+    #[serde(default = "default_t_rtw", skip_serializing_if = "is_default_t_rtw")]
+    pub t_rtw: u32,
+}
+
+fn default_t_wr() -> u32 {
+    2
+}
+fn is_default_t_wr(v: &u32) -> bool {
+    *v == default_t_wr()
+}
+fn default_t_wtr() -> u32 {
+    1
+}
+fn is_default_t_wtr(v: &u32) -> bool {
+    *v == default_t_wtr()
+}
+fn default_t_rtw() -> u32 {
+    4
+}
+fn is_default_t_rtw(v: &u32) -> bool {
+    *v == default_t_rtw()
 }
 
 impl SdramTiming {
-    /// Every timing parameter in cycles, by its configuration name (`sdram.<name>`).
+    /// The write-timing parameters in cycles, by configuration name (`sdram.<name>`).
+    pub fn write_parameters(&self) -> [(&'static str, u32); 3] {
+        [
+            ("t_wr", self.t_wr),
+            ("t_wtr", self.t_wtr),
+            ("t_rtw", self.t_rtw),
+        ]
+    }
+
+    /// Every read-path timing parameter in cycles, by its configuration name (`sdram.<name>`).
     pub fn parameters(&self) -> [(&'static str, u32); 9] {
         [
             ("cl", self.cl),
@@ -58,6 +107,9 @@ impl SdramTiming {
             ("sdram.t_rrd", self.t_rrd),
             ("sdram.t_ccd", self.t_ccd),
             ("sdram.t_rfc", self.t_rfc),
+            ("sdram.t_wr", self.t_wr),
+            ("sdram.t_wtr", self.t_wtr),
+            ("sdram.t_rtw", self.t_rtw),
         ] {
             if !(1..=64).contains(&value) {
                 return Err(Error::config(
@@ -66,6 +118,19 @@ impl SdramTiming {
                     format!("{value} is out of range; allowed 1..=64 cycles"),
                 ));
             }
+        }
+        if self.t_rtw <= self.cl {
+            return Err(Error::config(
+                source,
+                "sdram.t_rtw",
+                format!(
+                    "{} would drive write data while the READ's data (CL {} cycles after it) is \
+                     on the bus; allowed cl + 1 ({})..=64",
+                    self.t_rtw,
+                    self.cl,
+                    self.cl + 1
+                ),
+            ));
         }
         if self.refresh_interval <= self.t_rfc + self.t_rp {
             return Err(Error::config(
@@ -88,9 +153,11 @@ pub enum CommandKind {
     Read,
     Pre,
     Ref,
+    Write,
 }
 
-const KINDS: usize = 4;
+/// Command kinds (the index range of `CommandKind::index`).
+pub const KINDS: usize = 5;
 
 impl CommandKind {
     pub const ALL: [CommandKind; KINDS] = [
@@ -98,20 +165,22 @@ impl CommandKind {
         CommandKind::Read,
         CommandKind::Pre,
         CommandKind::Ref,
+        CommandKind::Write,
     ];
 
-    /// 0 ACT, 1 READ, 2 PRE, 3 REF.
+    /// 0 ACT, 1 READ, 2 PRE, 3 REF, 4 WRITE.
     pub fn index(self) -> usize {
         self as usize
     }
 
-    /// The command's name in traces and waveforms: ACT, READ, PRE, REF.
+    /// The command's name in traces and waveforms: ACT, READ, PRE, REF, WRITE.
     pub fn name(self) -> &'static str {
         match self {
             CommandKind::Act => "ACT",
             CommandKind::Read => "READ",
             CommandKind::Pre => "PRE",
             CommandKind::Ref => "REF",
+            CommandKind::Write => "WRITE",
         }
     }
 
@@ -135,6 +204,11 @@ pub enum Command {
     },
     /// Refresh; needs every bank closed.
     Ref,
+    /// One word written into the open row (burst length 1; the data goes with the command).
+    Write {
+        bank: usize,
+        column: u32,
+    },
 }
 
 impl Command {
@@ -144,14 +218,16 @@ impl Command {
             Command::Read { .. } => CommandKind::Read,
             Command::Pre { .. } => CommandKind::Pre,
             Command::Ref => CommandKind::Ref,
+            Command::Write { .. } => CommandKind::Write,
         }
     }
 
     fn bank(self) -> Option<usize> {
         match self {
-            Command::Act { bank, .. } | Command::Read { bank, .. } | Command::Pre { bank } => {
-                Some(bank)
-            }
+            Command::Act { bank, .. }
+            | Command::Read { bank, .. }
+            | Command::Write { bank, .. }
+            | Command::Pre { bank } => Some(bank),
             Command::Ref => None,
         }
     }
@@ -216,7 +292,22 @@ pub fn timing_rules(t: &SdramTiming) -> Vec<TimingRule> {
         rule(Read, Pre, SameBank, ("read_to_pre", 1)),
         rule(Ref, Act, AllBanks, ("t_rfc", t.t_rfc)),
         rule(Ref, Ref, AllBanks, ("t_rfc", t.t_rfc)),
+        // Writes (the update engine's path; burst length 1, write latency 0).
+        rule(Act, Write, SameBank, ("t_rcd", t.t_rcd)),
+        rule(Write, Write, AllBanks, ("t_ccd", t.t_ccd)),
+        rule(Write, Pre, SameBank, ("t_wr", t.t_wr)),
+        rule(Write, Read, AllBanks, ("t_wtr", t.t_wtr)),
+        rule(Read, Write, AllBanks, ("t_rtw", t.t_rtw)),
     ]
+}
+
+/// The rules among the read path's commands (ACT, READ, PRE, REF): the table without the
+/// rules that involve a WRITE. Command traces record the read path and list these.
+pub fn read_path_rules(t: &SdramTiming) -> Vec<TimingRule> {
+    timing_rules(t)
+        .into_iter()
+        .filter(|r| r.preceding != CommandKind::Write && r.following != CommandKind::Write)
+        .collect()
 }
 
 #[derive(Clone, Debug)]
@@ -227,15 +318,45 @@ struct Bank {
 }
 
 /// The rule table resolved for `issue`, per preceding command kind: the largest latency it
-/// imposes on each following kind in its own bank, in the other banks, and in every bank
-/// (0 = no rule). Every-bank rules are kept once per module rather than per bank.
+/// imposes on each following kind in its own bank, in the other banks, and in every bank.
+/// Every-bank rules are kept once per module rather than per bank.
 #[derive(Clone, Copy, Debug, Default)]
 struct Effects {
-    same: [u32; KINDS],
-    other: [u32; KINDS],
-    all: [u32; KINDS],
-    /// Whether `other` has any rule (most commands have none: skip the bank loop).
-    has_other: bool,
+    same: Raise,
+    other: Raise,
+    all: Raise,
+}
+
+/// The following kinds one scope of a preceding command constrains, and by how much: only the
+/// kinds with a rule, so issuing a command touches no slot it does not constrain (the WRITE
+/// rules cost the read path nothing).
+#[derive(Clone, Copy, Debug, Default)]
+struct Raise {
+    n: usize,
+    slot: [u8; KINDS],
+    latency: [u32; KINDS],
+}
+
+impl Raise {
+    /// Adds a rule: the largest latency per following kind holds.
+    fn add(&mut self, following: usize, latency: u32) {
+        match (0..self.n).find(|&i| self.slot[i] as usize == following) {
+            Some(i) => self.latency[i] = self.latency[i].max(latency),
+            None => {
+                self.slot[self.n] = following as u8;
+                self.latency[self.n] = latency;
+                self.n += 1;
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn apply(&self, earliest: &mut [u64; KINDS], now: u64) {
+        for i in 0..self.n {
+            let slot = &mut earliest[self.slot[i] as usize];
+            *slot = (*slot).max(now + self.latency[i] as u64);
+        }
+    }
 }
 
 /// The banks of one module with their timing state.
@@ -267,11 +388,7 @@ impl SdramDevice {
                 Scope::OtherBanks => &mut e.other,
                 Scope::AllBanks => &mut e.all,
             };
-            let slot = &mut table[rule.following.index()];
-            *slot = (*slot).max(rule.latency);
-        }
-        for e in &mut effects {
-            e.has_other = e.other.iter().any(|&l| l > 0);
+            table.add(rule.following.index(), rule.latency);
         }
         SdramDevice {
             banks: vec![
@@ -306,7 +423,7 @@ impl SdramDevice {
     pub fn state_allows(&self, cmd: Command) -> bool {
         match cmd {
             Command::Act { bank, .. } => self.banks[bank].open_row.is_none(),
-            Command::Read { bank, .. } | Command::Pre { bank } => {
+            Command::Read { bank, .. } | Command::Write { bank, .. } | Command::Pre { bank } => {
                 self.banks[bank].open_row.is_some()
             }
             Command::Ref => self.banks.iter().all(|b| b.open_row.is_none()),
@@ -330,21 +447,14 @@ impl SdramDevice {
     /// Issues a legal command at `now`: applies every rule it precedes and its state change.
     pub fn issue(&mut self, cmd: Command, now: u64) {
         debug_assert!(self.is_legal(cmd, now), "illegal {cmd:?} at {now}");
-        fn raise(earliest: &mut [u64; KINDS], latencies: &[u32; KINDS], now: u64) {
-            for (slot, &latency) in earliest.iter_mut().zip(latencies) {
-                if latency > 0 {
-                    *slot = (*slot).max(now + latency as u64);
-                }
-            }
-        }
-        let effects = self.effects[cmd.kind().index()];
-        raise(&mut self.all_banks, &effects.all, now);
+        let effects = &self.effects[cmd.kind().index()];
+        effects.all.apply(&mut self.all_banks, now);
         if let Some(own) = cmd.bank() {
-            raise(&mut self.banks[own].earliest, &effects.same, now);
-            if effects.has_other {
+            effects.same.apply(&mut self.banks[own].earliest, now);
+            if effects.other.n > 0 {
                 for (b, bank) in self.banks.iter_mut().enumerate() {
                     if b != own {
-                        raise(&mut bank.earliest, &effects.other, now);
+                        effects.other.apply(&mut bank.earliest, now);
                     }
                 }
             }
@@ -358,7 +468,7 @@ impl SdramDevice {
                 self.banks[bank].open_row = None;
                 self.open_rows[bank] = CLOSED;
             }
-            Command::Read { .. } | Command::Ref => {}
+            Command::Read { .. } | Command::Write { .. } | Command::Ref => {}
         }
         self.bus_free = now + 1;
     }

@@ -11,6 +11,14 @@
 //!
 //! A word read at cycle t is in the voxel FIFO at t + CL; the sample assembly takes at most one
 //! word per module per cycle. A request pushed at cycle t is seen by the controller at t + 1.
+//!
+//! Writes (volume updates, `arch::update`) wait in their own in-order write FIFO (depth
+//! `memory.address_fifo_depth`) and are served only when no read is queued (reads first: the
+//! renderer waits for them): WRITE if the row is open, else PRE, else ACT, under the same timing
+//! table. A module given a memory image (`with_image`) stores each WRITE's data in it at the
+//! WRITE's cycle, so the image is what the command sequence left in the SDRAM. The write path
+//! runs only under `step_with_writes`; the pipeline's `step` compiles without it, so a
+//! read-only simulation does the same work as before writes existed.
 
 use std::collections::VecDeque;
 
@@ -48,6 +56,60 @@ pub struct ModuleStats {
     /// Cycles spent at each voxel-FIFO fill level 0..=depth (places taken: words waiting for
     /// the sample assembly, and words on their way from a READ).
     pub voxel_fifo_occupancy: Vec<u64>,
+    /// WRITE commands (volume updates only; absent from the JSON when zero).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub writes: u64,
+    /// WRITEs that needed an ACT first.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub write_row_misses: u64,
+}
+
+fn is_zero(v: &u64) -> bool {
+    *v == 0
+}
+
+/// A word waiting in a module's write FIFO: where, the data and which halves to write (the
+/// byte masks, DQM: bit 0 the low half, bit 1 the high half of the 2 × 16-bit word).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PendingWrite {
+    pub addr: WordAddress,
+    pub data: u32,
+    pub mask: u8,
+}
+
+/// A module's memory contents: one 32-bit word (two 16-bit halves: the voxel pair (z, z+1), or
+/// one voxel in the low half) per (bank, row, column) of the rows a volume occupies.
+#[derive(Clone, Debug)]
+pub struct MemoryImage {
+    rows: u32,
+    columns: u32,
+    words: Vec<u32>,
+}
+
+impl MemoryImage {
+    pub fn new(banks: u32, rows: u32, columns: u32) -> MemoryImage {
+        MemoryImage {
+            rows,
+            columns,
+            words: vec![0; banks as usize * rows as usize * columns as usize],
+        }
+    }
+
+    fn index(&self, a: WordAddress) -> usize {
+        (a.bank as usize * self.rows as usize + a.row as usize) * self.columns as usize
+            + a.column as usize
+    }
+
+    pub fn word(&self, a: WordAddress) -> u32 {
+        self.words[self.index(a)]
+    }
+
+    fn write(&mut self, w: &PendingWrite) {
+        let i = self.index(w.addr);
+        let keep = (if w.mask & 1 == 0 { 0xffff } else { 0 })
+            | (if w.mask & 2 == 0 { 0xffff_0000 } else { 0 });
+        self.words[i] = (self.words[i] & keep) | (w.data & !keep);
+    }
 }
 
 pub struct SdramModule {
@@ -77,6 +139,11 @@ pub struct SdramModule {
     /// Sleeping enabled (off only to check that it changes nothing).
     sleeps: bool,
     pub stats: ModuleStats,
+    /// Words to write, in order (volume updates), and their FIFO depth.
+    writes: VecDeque<PendingWrite>,
+    write_depth: usize,
+    /// The module's contents, when modelled (`with_image`).
+    image: Option<MemoryImage>,
 }
 
 impl SdramModule {
@@ -117,7 +184,45 @@ impl SdramModule {
                 voxel_fifo_occupancy: vec![0; config.voxel_fifo_depth + 1],
                 ..ModuleStats::default()
             },
+            writes: VecDeque::new(),
+            write_depth: config.address_fifo_depth,
+            image: None,
         }
+    }
+
+    /// Models the module's contents (the rows `rows` per bank), all zero at the start: WRITEs
+    /// store their data there.
+    pub fn with_image(mut self, banks: u32, rows: u32, columns: u32) -> SdramModule {
+        self.image = Some(MemoryImage::new(banks, rows, columns));
+        self
+    }
+
+    pub fn image(&self) -> Option<&MemoryImage> {
+        self.image.as_ref()
+    }
+
+    /// A controller that runs every cycle instead of sleeping: the reference that sleeping
+    /// must equal (tests).
+    pub fn without_sleeping(mut self) -> SdramModule {
+        self.sleeps = false;
+        self
+    }
+
+    /// Whether the write FIFO has a free place.
+    pub fn can_accept_write(&self) -> bool {
+        self.writes.len() < self.write_depth
+    }
+
+    /// Queues a word write at cycle `now` (seen by the controller at `now + 1`).
+    pub fn push_write(&mut self, write: PendingWrite, _now: u64) {
+        debug_assert!(self.can_accept_write());
+        self.wake_at = 0;
+        self.writes.push_back(write);
+    }
+
+    /// Writes waiting in the write FIFO.
+    pub fn writes_pending(&self) -> usize {
+        self.writes.len()
     }
 
     pub fn can_accept(&self) -> bool {
@@ -147,6 +252,9 @@ impl SdramModule {
             Command::Read { bank, column } => {
                 (bank, self.device.open_row(bank).unwrap_or(0), column)
             }
+            Command::Write { bank, column } => {
+                (bank, self.device.open_row(bank).unwrap_or(0), column)
+            }
             Command::Pre { bank } => (bank, self.device.open_row(bank).unwrap_or(0), 0),
             Command::Ref => (0, 0, 0),
         };
@@ -159,6 +267,7 @@ impl SdramModule {
             Command::Read { .. } => self.stats.reads += 1,
             Command::Pre { .. } => self.stats.precharges += 1,
             Command::Ref => self.stats.refreshes += 1,
+            Command::Write { .. } => self.stats.writes += 1,
         }
         self.last_command = IssuedCommand {
             cycle: now,
@@ -182,8 +291,22 @@ impl SdramModule {
     /// command waits for a timing rule, or it is idle until the next refresh) sleeps until
     /// then; a push wakes it. Sleeping is exact: the cycles slept through are counted as
     /// ticking would count them (tests/sdram.rs compares both).
+    ///
+    /// The read path's step: the write FIFO is not looked at (the pipeline never writes), so
+    /// the controller compiles to the read-only code. `step_with_writes` serves both.
     #[inline]
     pub fn step(&mut self, now: u64) {
+        debug_assert!(self.writes.is_empty(), "writes need step_with_writes");
+        self.step_generic::<false>(now)
+    }
+
+    /// `step` for a module that also writes (volume updates): reads first, then writes.
+    pub fn step_with_writes(&mut self, now: u64) {
+        self.step_generic::<true>(now)
+    }
+
+    #[inline(always)]
+    fn step_generic<const WRITES: bool>(&mut self, now: u64) {
         if now < self.wake_at {
             return;
         }
@@ -192,23 +315,24 @@ impl SdramModule {
         }
         self.last_step = now;
         let wake = if self.sleeps {
-            self.control(now)
+            self.control::<WRITES>(now)
         } else {
-            self.control(now);
+            self.control::<WRITES>(now);
             now + 1
         };
         self.wake_at = wake.min(self.next_refresh);
-        self.busy_while_asleep = !self.fifo.is_empty() || self.refresh_pending;
+        self.busy_while_asleep =
+            !self.fifo.is_empty() || self.refresh_pending || (WRITES && !self.writes.is_empty());
     }
 
     /// The controller's decision in cycle `now`; returns the next cycle it must run again
-    /// (absent pushes).
-    fn control(&mut self, now: u64) -> u64 {
+    /// (absent pushes). With `WRITES` false (the read path) the write FIFO is not looked at.
+    fn control<const WRITES: bool>(&mut self, now: u64) -> u64 {
         if now >= self.next_refresh {
             self.refresh_pending = true;
             self.next_refresh += self.refresh_interval.unwrap_or(u64::MAX);
         }
-        if !self.fifo.is_empty() || self.refresh_pending {
+        if !self.fifo.is_empty() || self.refresh_pending || (WRITES && !self.writes.is_empty()) {
             self.stats.busy_cycles += 1;
         }
         if self.refresh_pending {
@@ -244,6 +368,9 @@ impl SdramModule {
         let pending_close = self.policy == RowPolicy::Close && self.to_close.iter().any(|&c| c);
         let device = &self.device;
         let Some(index) = self.fifo.select(|a| device.row_is_open(a.bank, a.row)) else {
+            if WRITES && !self.writes.is_empty() {
+                return self.control_write_path(now, pending_close);
+            }
             return if pending_close { now + 1 } else { u64::MAX };
         };
         let request = *self.fifo.get_mut(index);
@@ -287,7 +414,50 @@ impl SdramModule {
             }
             Command::Pre { .. } => self.fifo.get_mut(index).precharged = true,
             Command::Act { .. } => self.fifo.get_mut(index).activated = true,
-            Command::Ref => unreachable!("requests never issue a refresh"),
+            Command::Ref | Command::Write { .. } => {
+                unreachable!("read requests issue READ, PRE or ACT")
+            }
+        }
+        now + 1
+    }
+
+    /// The write path's decision (no read queued). Kept out of line: the read path's `control`
+    /// stays as small (and as inlined) as without writes.
+    #[cold]
+    #[inline(never)]
+    fn control_write_path(&mut self, now: u64, pending_close: bool) -> u64 {
+        self.control_write(now, pending_close)
+    }
+
+    /// The write path's decision (no read queued): the oldest write's WRITE if its row is
+    /// open, else PRE the bank's other row, else ACT its row.
+    fn control_write(&mut self, now: u64, pending_close: bool) -> u64 {
+        let write = self.writes[0];
+        let bank = write.addr.bank as usize;
+        let command = match self.device.open_row(bank) {
+            Some(row) if row == write.addr.row => Command::Write {
+                bank,
+                column: write.addr.column,
+            },
+            Some(_) => Command::Pre { bank },
+            None => Command::Act {
+                bank,
+                row: write.addr.row,
+            },
+        };
+        if !self.try_issue(command, now, 0) {
+            let ready = self.device.earliest(command);
+            return if pending_close { now + 1 } else { ready };
+        }
+        match command {
+            Command::Write { .. } => {
+                self.writes.pop_front();
+                if let Some(image) = &mut self.image {
+                    image.write(&write);
+                }
+            }
+            Command::Act { .. } => self.stats.write_row_misses += 1,
+            _ => {}
         }
         now + 1
     }
@@ -315,7 +485,7 @@ impl SdramModule {
     }
 
     pub fn is_idle(&self) -> bool {
-        self.fifo.is_empty() && self.voxel_fifo.is_empty()
+        self.fifo.is_empty() && self.voxel_fifo.is_empty() && self.writes.is_empty()
     }
 
     /// Adds `cycles` cycles at the current FIFO levels to the occupancy histograms.

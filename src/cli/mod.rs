@@ -11,6 +11,7 @@ mod render;
 mod results;
 mod sim;
 mod sweep;
+mod update;
 mod verify_skip;
 
 use std::path::PathBuf;
@@ -67,6 +68,9 @@ enum Command {
     Plot(results::PlotArgs),
     /// Render orbits and a gallery of the phantoms and the datasets present into reports/demo/.
     Demo(demo::DemoArgs),
+    /// Volume updates: a download over the host link with the maps built on the way, a scan
+    /// pass, a transfer-function change and a partial update, in cycles (docs/dynamic.md).
+    Update(update::UpdateArgs),
 }
 
 pub fn run(cli: Cli) -> Result<()> {
@@ -89,6 +93,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Table(args) => results::table(args),
         Command::Plot(args) => results::plot(args),
         Command::Demo(args) => demo::run(args),
+        Command::Update(args) => update::run(args),
     }
 }
 

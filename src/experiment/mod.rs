@@ -239,7 +239,7 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
     write_lines(&out.join(store::RESULTS), &lines)?;
     let mut timings: BTreeMap<String, String> = BTreeMap::new();
     for dir in inputs {
-        for (line, text) in store::read_lines(&dir.join(store::TIMING))? {
+        for (line, text) in store::read_timing(&dir.join(store::TIMING))? {
             let key = line.get("key").and_then(Value::as_str);
             if let Some(key) = key.filter(|k| lines.contains_key(*k)) {
                 timings.entry(key.to_string()).or_insert(text);

@@ -2,6 +2,9 @@
 //! run, appended with one `write` per line and synced, so a killed sweep loses nothing it
 //! finished. On reopening, a torn last line (no newline, or not JSON: the kill hit the write)
 //! is cut off and its run is done again; a malformed line anywhere else is an error.
+//! `timing.jsonl` holds one wall time per result, written after the result: on reopening it is
+//! made consistent with the results (torn or malformed lines dropped, one entry per result,
+//! `null` for a result whose time a kill lost, none for runs without a result).
 
 use std::collections::HashSet;
 use std::fs::{File, OpenOptions};
@@ -75,6 +78,57 @@ fn scan(path: &Path) -> Result<(Vec<Line>, u64, bool)> {
     Ok((lines, offset as u64, torn))
 }
 
+/// The well-formed lines of a timing file (missing file = none): torn or malformed lines (a
+/// full disk, a kill between the result and its time) are skipped, not errors.
+pub fn read_timing(path: &Path) -> Result<Vec<Line>> {
+    let bytes = match std::fs::read(path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(Error::io(path, e)),
+    };
+    let text = String::from_utf8_lossy(&bytes);
+    let mut lines = Vec::new();
+    let complete = match text.rfind('\n') {
+        Some(end) => &text[..end],
+        None => "",
+    };
+    for line in complete.split('\n') {
+        if let Ok(v) = serde_json::from_str::<Value>(line) {
+            if v.get("key").and_then(Value::as_str).is_some() {
+                lines.push((v, line.to_string()));
+            }
+        }
+    }
+    Ok(lines)
+}
+
+/// Makes `timing.jsonl` hold exactly one line per result key, in results order: the last
+/// well-formed time of each, `"wall_seconds": null` where it was lost. Rewritten (atomically)
+/// only when that changes the file; returns whether it did.
+fn repair_timing(path: &Path, result_keys: &[String]) -> Result<bool> {
+    let existing = std::fs::read(path).unwrap_or_default();
+    let mut times: std::collections::HashMap<String, String> = std::collections::HashMap::new();
+    for (v, text) in read_timing(path)? {
+        if let Some(key) = v.get("key").and_then(Value::as_str) {
+            times.insert(key.to_string(), text);
+        }
+    }
+    let mut repaired = String::new();
+    for key in result_keys {
+        match times.get(key) {
+            Some(text) => repaired.push_str(text),
+            None => repaired
+                .push_str(&serde_json::json!({ "key": key, "wall_seconds": null }).to_string()),
+        }
+        repaired.push('\n');
+    }
+    if repaired.as_bytes() == existing.as_slice() {
+        return Ok(false);
+    }
+    crate::output::write_atomically(path, |w| w.write_all(repaired.as_bytes()))?;
+    Ok(true)
+}
+
 pub struct ResultStore {
     dir: PathBuf,
     keys: HashSet<String>,
@@ -116,10 +170,18 @@ impl ResultStore {
                 path.display()
             );
         }
-        let keys = lines
+        let ordered: Vec<String> = lines
             .iter()
             .filter_map(|(v, _)| v.get("key").and_then(Value::as_str).map(str::to_string))
             .collect();
+        let timing_path = dir.join(TIMING);
+        if (!ordered.is_empty() || timing_path.exists()) && repair_timing(&timing_path, &ordered)? {
+            eprintln!(
+                "{}: repaired (one wall time per result; torn lines dropped, lost times null)",
+                timing_path.display()
+            );
+        }
+        let keys = ordered.into_iter().collect();
         let append = |p: &Path| {
             OpenOptions::new()
                 .create(true)

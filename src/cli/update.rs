@@ -1,0 +1,149 @@
+//! `vizsim update`: what keeping the occupancy maps of a volume costs on the update engine —
+//! a download over the host link with the maps built on the way, a separate scan pass, a
+//! transfer-function change (scan against the min/max table) and, with `--next`, a partial
+//! update to another volume (docs/dynamic.md). The measuring is `vizsim::dynamic::measure`.
+
+use anyhow::{Context, Result};
+use clap::Args;
+
+use super::{DataArgs, HardwareArgs};
+
+#[derive(Args)]
+pub struct UpdateArgs {
+    /// Dataset name, phantom spec or file: the volume downloaded.
+    dataset: String,
+    #[command(flatten)]
+    data: DataArgs,
+    /// Transfer function of the class map: `class`, `zero`, a preset or a file.
+    #[arg(long, default_value = "class")]
+    tf: String,
+    /// A second volume of the same extent: measure the partial update to it (its changed
+    /// bricks), with widened and with rescanned maps.
+    #[arg(long)]
+    next: Option<String>,
+    /// Brick edge of the partial update's regions.
+    #[arg(long, default_value_t = 8)]
+    brick: usize,
+    #[command(flatten)]
+    hardware: HardwareArgs,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(args: UpdateArgs) -> Result<()> {
+    use vizsim::functional::arith::ClassificationTable;
+    anyhow::ensure!(
+        args.brick >= 1,
+        "--brick 0: the brick edge must be at least 1"
+    );
+    let config = args.hardware.load(&[])?;
+    let subcube = args
+        .hardware
+        .subcube
+        .context("--subcube: the sub-cube size of the maps is required")?;
+    let volume = args.data.load(&args.dataset)?;
+    let tf = vizsim::transfer::resolve(&args.tf, &volume.name).context("--tf")?;
+    let table = ClassificationTable::build(
+        &tf,
+        1usize << volume.bits,
+        config.classification.lut_bits,
+        1.0,
+    );
+    let next = match &args.next {
+        Some(spec) => Some(args.data.load(spec).context("--next")?),
+        None => None,
+    };
+    let report = vizsim::dynamic::measure(
+        &config,
+        &volume,
+        &table,
+        subcube,
+        next.as_ref().map(|v| (v, args.brick)),
+    )?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    let ms = |cycles: u64| cycles as f64 / (report.clock_mhz * 1e3);
+    let d = &report.download;
+    println!(
+        "{} {:?}, {} mapping, {}³ sub-cubes, clock {} MHz, host link {:.0} MB/s",
+        report.volume,
+        report.dims,
+        report.mapping,
+        subcube,
+        report.clock_mhz,
+        report.host_link_mb_per_s
+    );
+    println!(
+        "download in volume order: {} voxels, {} host bytes; {} cycles ({:.2} ms; host link bound {} cycles), \
+         {} WRITEs ({:.2} per voxel, {} row misses), write stalls {} cycles; \
+         map during the update: +{} cycles, exact",
+        d.voxels_written,
+        d.host_bytes,
+        d.write_cycles,
+        ms(d.write_cycles),
+        d.host_link_cycles,
+        d.writes,
+        d.writes_per_voxel,
+        d.write_row_misses,
+        d.write_stall_cycles,
+        d.map_cycles
+    );
+    let d = &report.download_tiled;
+    println!(
+        "download in tiles: {} regions, {} host bytes; {} cycles ({:.2} ms; host link bound {} \
+         cycles), {} WRITEs ({:.2} per voxel, {} row misses), write stalls {} cycles",
+        d.regions,
+        d.host_bytes,
+        d.write_cycles,
+        ms(d.write_cycles),
+        d.host_link_cycles,
+        d.writes,
+        d.writes_per_voxel,
+        d.write_row_misses,
+        d.write_stall_cycles
+    );
+    let s = &report.scan;
+    println!(
+        "scan pass: {} requests, {} cycles = {:.2} ms (published ~20 ms for 256³), row hits {:.1} %",
+        s.requests, s.cycles, s.ms, 100.0 * s.row_hit_rate
+    );
+    let t = &report.tf_change;
+    println!(
+        "transfer-function change: scan {} cycles ({:.2} ms) or min/max table {} + {} cycles \
+         ({:.1} µs); table {} bits SRAM (+ prefix table {} bits), map {} bits",
+        t.scan_cycles,
+        ms(t.scan_cycles),
+        t.prefix_cycles,
+        t.table_pass_cycles,
+        report.tf_change_table_us,
+        t.table_bits,
+        t.prefix_bits,
+        report.map_bits
+    );
+    if let Some(p) = &report.partial {
+        for (name, r) in [("widen", &p.widen), ("rescan", &p.rescan)] {
+            println!(
+                "partial update to {} ({}³ bricks), {name}: {} regions, {} voxels, {} cycles \
+                 ({:.2} ms) + rescan {} + map {} cycles; map {}",
+                p.next,
+                p.brick,
+                r.regions,
+                r.voxels_written,
+                r.write_cycles,
+                ms(r.write_cycles),
+                r.rescan_cycles,
+                r.map_cycles,
+                if r.map_exact { "exact" } else { "conservative" }
+            );
+        }
+        println!(
+            "  widened class map: {} sub-cubes set that the new volume leaves empty",
+            p.widen_stale_subcubes
+        );
+    }
+    println!("maps checked against OccupancyMap::build: equal after each download and the scan");
+    Ok(())
+}
