@@ -33,8 +33,9 @@ pub struct LeapValueStats {
     pub guard_voxels: u32,
     /// Regions kept by the segmentation.
     pub regions: usize,
-    /// Regions that got leap voxels (all of them for homogeneous leaping; the ones that
-    /// classify to zero opacity for empty-region leaping).
+    /// Regions whose voxels carry leap information: for homogeneous leaping those with at
+    /// least one leap voxel (the others keep their densities); for empty-region leaping those
+    /// that classify to zero opacity.
     pub leap_regions: usize,
     /// Voxels whose word is flagged.
     pub leap_voxels: u64,
@@ -76,8 +77,31 @@ impl LeapValueVolume {
         let regions = pre.segmentation.regions.len();
         let (words, densities, leap_regions) = match config.regions {
             LeapRegions::Homogeneous => {
-                let densities = pre.encoded.density_volume(volume)?;
-                (pre.encoded.words, Some(densities), regions)
+                // Only regions with leap voxels are replaced by their means: a region too thin
+                // for any leap voxel (a partial-volume shell) gains no leap from it and would
+                // only turn a smooth ramp into a staircase, so its voxels keep their densities.
+                let mut leaps_in = vec![false; regions];
+                for (i, class) in pre.classification.classes.iter().enumerate() {
+                    if *class == VoxelClass::Leap {
+                        leaps_in[pre.segmentation.labels[i] as usize - 1] = true;
+                    }
+                }
+                let mut words = pre.encoded.words;
+                for (i, word) in words.iter_mut().enumerate() {
+                    let label = pre.segmentation.labels[i] as usize;
+                    if label >= 1 && !leaps_in[label - 1] {
+                        *word = layout.encode(volume.data[i], None)?;
+                    }
+                }
+                let encoded = super::EncodedVolume {
+                    layout,
+                    dims: volume.dims,
+                    words,
+                    elapsed: Duration::ZERO,
+                };
+                let densities = encoded.density_volume(volume)?;
+                let used = leaps_in.iter().filter(|&&l| l).count();
+                (encoded.words, Some(densities), used)
             }
             LeapRegions::Empty => {
                 // Only regions whose whole range is invisible keep their leap voxels, and every
