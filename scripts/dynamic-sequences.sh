@@ -5,12 +5,13 @@
 # with a rescan, by a scan pass per step, and no leaping. Runs
 #   VIZSIM sequence --source SOURCE --steps 30 --subcube 8 --map MODE --json
 # into OUT/json/ (a JSON already there is kept: rerun after deleting it) and prints the tables.
-#   scripts/dynamic-sequences.sh OUT [VIZSIM]     (VIZSIM default: target/release/vizsim)
+#   [SOURCES="..."] scripts/dynamic-sequences.sh OUT [VIZSIM]   (VIZSIM default: target/release/vizsim)
+# SOURCES defaults to "phantom:metaballs:128 phantom:tsdf:128".
 set -euo pipefail
 out=${1:?output folder}
 vizsim=${2:-target/release/vizsim}
 mkdir -p "$out/json"
-sources="phantom:metaballs:128 phantom:tsdf:128"
+sources=${SOURCES:-"phantom:metaballs:128 phantom:tsdf:128"}
 modes="during-update rescan scan none"
 for source in $sources; do
     for mode in $modes; do
@@ -38,7 +39,7 @@ for s in sources:
         u, mp, rd = r["mean_update_cycles"], r["mean_map_cycles"], r["mean_render_cycles"]
         last = r["steps"][-1]
         print(f"| {s} | {m} | {ms(u, f):.2f} | {ms(mp, f):.3f} | {ms(rd, f):.2f} | {ms(u + mp + rd, f):.2f} | "
-              f"{r['steady_fps']:.1f} | {r['fps']:.1f} | {last['stale_subcubes']} | {last['empty_subcubes_percent']:.1f} % |")
+              f"{r['steady_fps']:.1f} | {r['fps']:.1f} | {last['stale_subcubes'] if m != 'none' else '—'} | {'%.1f %%' % last['empty_subcubes_percent'] if m != 'none' else '—'} |")
 for s in sources:
     print()
     print(f"Per step, {s} (cycles: update / map / render; map during-update vs rescan vs scan vs none):")
