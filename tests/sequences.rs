@@ -365,3 +365,83 @@ fn bad_input_gives_clear_errors() {
     .to_string();
     assert!(e.contains("cycle model"), "{e}");
 }
+
+fn vizsim(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn the_sequence_command_reports_every_step_and_rejects_bad_input() {
+    let out = vizsim(&[
+        "sequence",
+        "--source",
+        "phantom:tsdf:32",
+        "--steps",
+        "3",
+        "--subcube",
+        "4",
+        "--size",
+        "32x32",
+        "--brick",
+        "4",
+        "--verify",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["steps"].as_array().unwrap().len(), 3);
+    assert_eq!(report["map"], "during-update");
+    assert_eq!(report["ordering"], "fence");
+    assert!(report["steady_fps"].as_f64().unwrap() > 0.0);
+    for step in report["steps"].as_array().unwrap() {
+        assert_eq!(step["equals_non_leaping"], true);
+    }
+    let text = vizsim(&[
+        "sequence",
+        "--source",
+        "phantom:metaballs:32",
+        "--steps",
+        "2",
+        "--subcube",
+        "4",
+        "--size",
+        "32x32",
+        "--map",
+        "rescan",
+    ]);
+    let stdout = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        text.status.success() && stdout.contains("frames/s"),
+        "{stdout}"
+    );
+    for (args, needle) in [
+        (vec!["--steps", "0", "--subcube", "4"], "zero time steps"),
+        (vec!["--steps", "2"], "--subcube"),
+        (
+            vec!["--steps", "2", "--subcube", "4", "--map", "sometimes"],
+            "during-update",
+        ),
+    ] {
+        let mut all = vec![
+            "sequence",
+            "--source",
+            "phantom:metaballs:32",
+            "--size",
+            "32x32",
+        ];
+        all.extend(args);
+        let out = vizsim(&all);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && stderr.contains(needle),
+            "{all:?}: {stderr}"
+        );
+    }
+}
