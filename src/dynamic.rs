@@ -2,14 +2,20 @@
 //! cost on the update engine (`arch::update`), each in clock cycles, with the maps each way
 //! checked against `OccupancyMap::build` on the volume in memory (docs/dynamic.md).
 
+use crate::arch::address_map::MemoryConfig;
 use crate::arch::update::{
     PartialMapPolicy, ScanReport, TfChangeReport, UpdateEngine, UpdateReport, VolumeUpdate,
 };
 use crate::config::HardwareConfig;
 use crate::error::{Error, Result};
 use crate::functional::arith::ClassificationTable;
+use crate::functional::renderer::Leaping;
 use crate::occupancy::{check_subcube_size, OccupancyKind, OccupancyMap};
+use crate::render::Frame;
+use crate::run::{self, Model, RunDescription};
+use crate::volume::phantom::{self, PhantomKind, PhantomSpec, TsdfFusion};
 use crate::volume::Volume;
+use std::path::{Path, PathBuf};
 
 /// The regions of `after` that differ from `before`: one region per `brick`³ brick (clipped to
 /// the volume) holding any changed voxel, in brick order: a partial update of one time step.
@@ -210,4 +216,522 @@ fn check_maps(
         }
     }
     Ok(extra)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Volume sequences and the frame loop of a dynamic sequence (issue 16, parts 1 and 4).
+
+/// Largest number of time steps of a sequence.
+pub const MAX_STEPS: usize = 10_000;
+
+/// Where the time steps come from.
+enum Source {
+    /// `phantom:metaballs…` at t0, t0 + dt, t0 + 2·dt, …
+    Metaballs { spec: PhantomSpec, dt: f32 },
+    /// `phantom:tsdf…`: one depth image integrated per step, at t0 + 1, t0 + 2, … after the
+    /// reconstruction at t0.
+    Tsdf {
+        spec: PhantomSpec,
+        fusion: TsdfFusion,
+    },
+    /// A folder of raw/NRRD files, one time step each, in file-name order.
+    Folder { files: Vec<PathBuf> },
+}
+
+/// A sequence of volumes of one extent, read step by step.
+pub struct Sequence {
+    source: Source,
+    /// The source as given.
+    pub name: String,
+    pub steps: usize,
+    brick: usize,
+    next: usize,
+    current: Option<Volume>,
+}
+
+/// One time step: the volume and what the host sends to bring the previous one up to it.
+pub struct SequenceStep {
+    pub index: usize,
+    pub volume: Volume,
+    /// Step 0: the whole volume in the layout's tiles (a download); later steps: the changed
+    /// (metaballs, folder) or touched (TSDF) `brick`³ bricks.
+    pub update: VolumeUpdate,
+    /// TSDF: the voxels the integration touched (all within μ of the observed surface).
+    pub touched_voxels: Option<Vec<usize>>,
+}
+
+impl Sequence {
+    /// Opens `source`: `phantom:metaballs[:SIZE][:seed=N][:t=T0]` (time steps `dt` apart),
+    /// `phantom:tsdf[:SIZE][:seed=N][:t=T0]` (one depth image per step) or a folder of
+    /// `.raw`/`.nrrd`/`.nhdr` files (one per step, file-name order, all of one size). Errors:
+    /// zero steps, more steps than the folder holds or the TSDF allows, a phantom that does not
+    /// move, a brick of 0.
+    pub fn open(source: &str, steps: usize, dt: f32, brick: usize) -> Result<Sequence> {
+        if steps == 0 {
+            return Err(Error::Invalid(
+                "zero time steps: a sequence needs at least one".into(),
+            ));
+        }
+        if steps > MAX_STEPS {
+            return Err(Error::Invalid(format!(
+                "{steps} time steps: at most {MAX_STEPS}"
+            )));
+        }
+        if brick == 0 {
+            return Err(Error::Invalid("brick size 0: must be at least 1".into()));
+        }
+        let source_kind = if let Some(rest) = source.strip_prefix("phantom:") {
+            let spec = phantom::parse_spec(rest)?;
+            match spec.kind {
+                PhantomKind::Metaballs => {
+                    if !dt.is_finite() || dt <= 0.0 {
+                        return Err(Error::Invalid(format!(
+                            "time step dt = {dt}: must be a finite number above 0"
+                        )));
+                    }
+                    Source::Metaballs { spec, dt }
+                }
+                PhantomKind::Tsdf => {
+                    let last = spec.time as f64 + (steps - 1) as f64;
+                    if last > phantom::TSDF_MAX_TIME as f64 {
+                        return Err(Error::Invalid(format!(
+                            "time step {} (t = {last}) out of range: the TSDF phantom goes up to \
+                             t = {}",
+                            steps - 1,
+                            phantom::TSDF_MAX_TIME
+                        )));
+                    }
+                    let fusion = TsdfFusion::new(spec.size, spec.seed);
+                    Source::Tsdf { spec, fusion }
+                }
+                other => {
+                    return Err(Error::Invalid(format!(
+                        "{source}: the {} phantom does not change with time; sequences: \
+                         phantom:metaballs, phantom:tsdf or a folder of time steps",
+                        other.name()
+                    )))
+                }
+            }
+        } else {
+            let dir = Path::new(source);
+            if !dir.is_dir() {
+                return Err(Error::Invalid(format!(
+                    "{source}: not a sequence (phantom:metaballs…, phantom:tsdf… or a folder \
+                     of raw/NRRD time steps)"
+                )));
+            }
+            let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+                .map_err(|e| Error::Invalid(format!("{source}: {e}")))?
+                .filter_map(|entry| entry.ok().map(|e| e.path()))
+                .filter(|p| {
+                    p.is_file()
+                        && [".raw", ".nrrd", ".nhdr"]
+                            .iter()
+                            .any(|ext| p.to_string_lossy().ends_with(ext))
+                })
+                .collect();
+            files.sort();
+            if files.is_empty() {
+                return Err(Error::Invalid(format!(
+                    "{source}: no .raw, .nrrd or .nhdr time steps in the folder"
+                )));
+            }
+            if steps > files.len() {
+                return Err(Error::Invalid(format!(
+                    "time step {} out of range: the folder {source} holds {} time steps \
+                     (0..={})",
+                    steps - 1,
+                    files.len(),
+                    files.len() - 1
+                )));
+            }
+            Source::Folder { files }
+        };
+        Ok(Sequence {
+            source: source_kind,
+            name: source.to_string(),
+            steps,
+            brick,
+            next: 0,
+            current: None,
+        })
+    }
+
+    /// The next time step, or None after the last. `memory` sets the tiles of the first
+    /// step's download.
+    pub fn next_step(&mut self, memory: &MemoryConfig) -> Result<Option<SequenceStep>> {
+        if self.next >= self.steps {
+            return Ok(None);
+        }
+        let k = self.next;
+        let mut touched = None;
+        let volume = match &mut self.source {
+            Source::Metaballs { spec, dt } => phantom::generate(&PhantomSpec {
+                time: spec.time + k as f32 * *dt,
+                ..spec.clone()
+            }),
+            Source::Tsdf { spec, fusion } => {
+                let time = spec.time as f64 + k as f64;
+                if k == 0 {
+                    *fusion = TsdfFusion::at(spec.size, spec.seed, time);
+                } else {
+                    touched = Some(fusion.integrate(time));
+                }
+                let step = PhantomSpec {
+                    time: time as f32,
+                    ..spec.clone()
+                };
+                Volume::new(step.name(), [spec.size; 3], [1.0; 3], 8, fusion.values())?
+            }
+            Source::Folder { files } => {
+                let file = &files[k];
+                let volume = crate::volume::dataset::load_file(file)?;
+                if let Some(first) = &self.current {
+                    if volume.dims != first.dims || volume.bits != first.bits {
+                        return Err(Error::Invalid(format!(
+                            "{}: {:?} voxels of {} bits, but the sequence's earlier time steps \
+                             are {:?} of {} bits: every time step must have the same size",
+                            file.display(),
+                            volume.dims,
+                            volume.bits,
+                            first.dims,
+                            first.bits
+                        )));
+                    }
+                }
+                volume
+            }
+        };
+        let update = match (&self.current, &touched) {
+            (None, _) => VolumeUpdate::full_tiled(&volume, memory),
+            (Some(_), Some(voxels)) => touched_bricks(&volume, voxels, self.brick),
+            (Some(before), None) => changed_bricks(before, &volume, self.brick)?,
+        };
+        self.current = Some(volume.clone());
+        self.next += 1;
+        Ok(Some(SequenceStep {
+            index: k,
+            volume,
+            update,
+            touched_voxels: touched,
+        }))
+    }
+}
+
+/// The `brick`³ bricks holding any of `voxels` (indices, x fastest), each as one region of
+/// `volume`, in brick order: the partial update of a TSDF integration.
+pub fn touched_bricks(volume: &Volume, voxels: &[usize], brick: usize) -> VolumeUpdate {
+    let d = volume.dims;
+    let bd = d.map(|v| v.div_ceil(brick));
+    let mut marked = vec![false; bd[0] * bd[1] * bd[2]];
+    for &i in voxels {
+        let (x, y, z) = (i % d[0], (i / d[0]) % d[1], i / (d[0] * d[1]));
+        marked[x / brick + bd[0] * (y / brick + bd[1] * (z / brick))] = true;
+    }
+    let mut regions = Vec::new();
+    for (b, _) in marked.iter().enumerate().filter(|(_, m)| **m) {
+        let c = [b % bd[0], (b / bd[0]) % bd[1], b / (bd[0] * bd[1])];
+        let o = c.map(|v| v * brick);
+        let e = [0, 1, 2].map(|a| brick.min(d[a] - o[a]));
+        regions.push(VolumeUpdate::region_of(volume, o, e));
+    }
+    VolumeUpdate {
+        regions,
+        ..VolumeUpdate::default()
+    }
+}
+
+/// How the occupancy map follows the volume in a sequence.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MapMode {
+    /// Built during the update from the min/max table (`PartialMapPolicy::Widen`):
+    /// conservative after partial updates.
+    DuringUpdate,
+    /// During the update, the partly written sub-cubes read back (`PartialMapPolicy::Rescan`):
+    /// exact.
+    Rescan,
+    /// A separate scan pass after every update (exact), then every map bit written.
+    Scan,
+    /// No leaping: no map.
+    None,
+}
+
+impl MapMode {
+    pub fn parse(text: &str) -> std::result::Result<MapMode, String> {
+        match text {
+            "during-update" => Ok(MapMode::DuringUpdate),
+            "rescan" => Ok(MapMode::Rescan),
+            "scan" => Ok(MapMode::Scan),
+            "none" => Ok(MapMode::None),
+            other => Err(format!(
+                "`{other}`: expected `during-update`, `rescan`, `scan` or `none`"
+            )),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            MapMode::DuringUpdate => "during-update",
+            MapMode::Rescan => "rescan",
+            MapMode::Scan => "scan",
+            MapMode::None => "none",
+        }
+    }
+}
+
+/// What a sequence run does besides the run description.
+#[derive(Clone, Debug)]
+pub struct SequenceOptions {
+    pub steps: usize,
+    /// Metaballs: time between steps.
+    pub dt: f32,
+    /// Edge of the bricks a partial update sends.
+    pub brick: usize,
+    pub map: MapMode,
+    /// Render every frame a second time without leaping and require the same image.
+    pub verify: bool,
+}
+
+/// One time step of the frame loop, in pipeline clock cycles. Ordering: a fence (docs/dynamic.md):
+/// update, then map, then render, one after the other on the same SDRAM.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct StepReport {
+    pub step: usize,
+    pub volume: String,
+    pub regions: u64,
+    pub voxels_written: u64,
+    /// TSDF: voxels the depth image's integration touched.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub voxels_touched: Option<u64>,
+    /// From the first byte on the host link to the last WRITE.
+    pub update_cycles: u64,
+    /// After the last WRITE until the map is ready: map bits from the table (during-update),
+    /// plus the rescan of partly written sub-cubes (rescan), or the scan pass and every bit
+    /// (scan); 0 without leaping.
+    pub map_cycles: u64,
+    /// The frame on the cycle model (`run::execute`), with the map as the chip holds it.
+    pub render_cycles: u64,
+    pub total_cycles: u64,
+    /// Map bits set whose sub-cubes are empty in the volume in memory (conservative, stale).
+    pub stale_subcubes: u64,
+    /// Empty sub-cubes of the map rendered with, percent.
+    pub empty_subcubes_percent: f64,
+    /// With `verify`: the image equals the non-leaping image bit for bit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub equals_non_leaping: Option<bool>,
+}
+
+/// A sequence's frame loop.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SequenceReport {
+    pub source: String,
+    pub dims: [usize; 3],
+    pub map: MapMode,
+    pub subcube: usize,
+    pub brick: usize,
+    pub clock_mhz: f64,
+    /// How update and render are ordered: `fence` (update, map, render in turn).
+    pub ordering: &'static str,
+    pub steps: Vec<StepReport>,
+    /// Frames per second over every step, the download of step 0 included.
+    pub fps: f64,
+    /// Frames per second of the steps after the first (partial updates): the sequence's rate.
+    pub steady_fps: f64,
+    /// Mean cycles per step after the first: update, map, render.
+    pub mean_update_cycles: f64,
+    pub mean_map_cycles: f64,
+    pub mean_render_cycles: f64,
+}
+
+/// What the frame loop shows an observer after each step.
+pub struct StepView<'a> {
+    pub report: &'a StepReport,
+    /// The volume the step describes.
+    pub volume: &'a Volume,
+    /// The volume as the SDRAM holds it after the update (what the frame read).
+    pub memory: &'a Volume,
+    /// The map the frame leapt with (None without leaping).
+    pub map: Option<&'a OccupancyMap>,
+    pub frame: &'a Frame,
+}
+
+/// Runs the frame loop of `source` with `run` (cycle model; its dataset is ignored; its
+/// `occupancy.subcube` is the map's sub-cube size): per step the update engine writes what
+/// changed, the map follows as `options.map` says, and the frame is rendered through
+/// `run::prepare`/`run::execute` from the volume in the SDRAM with the map the chip holds.
+/// Errors: the memory image differs from the step's volume, the map is not conservative, or
+/// (`verify`) a frame differs from the non-leaping frame.
+pub fn run_sequence(
+    run: &RunDescription,
+    source: &str,
+    options: &SequenceOptions,
+    mut observe: impl FnMut(&StepView) -> Result<()>,
+) -> Result<SequenceReport> {
+    if run.model != Model::Cycle {
+        return Err(Error::Invalid(format!(
+            "a sequence runs on the cycle model, not the {} model",
+            run.model.name()
+        )));
+    }
+    let hw = &run.hardware;
+    let leaping_run = || {
+        let mut r = run.clone();
+        if options.map == MapMode::None {
+            r.hardware.occupancy.subcube = 0;
+        }
+        r
+    };
+    let render_run = leaping_run();
+    if options.map != MapMode::None && !matches!(render_run.leaping(), Leaping::Occupancy { .. }) {
+        return Err(Error::Invalid(format!(
+            "--map {}: the run must leap with an occupancy map (give a sub-cube size)",
+            options.map.name()
+        )));
+    }
+    let plain_run = {
+        let mut r = run.clone();
+        r.hardware.occupancy.subcube = 0;
+        r
+    };
+    let mut sequence = Sequence::open(source, options.steps, options.dt, options.brick)?;
+    let kind = hw.occupancy.kind;
+    let policy = if options.map == MapMode::Rescan {
+        PartialMapPolicy::Rescan
+    } else {
+        PartialMapPolicy::Widen
+    };
+    let mut engine: Option<UpdateEngine> = None;
+    let mut steps = Vec::new();
+    let mut subcube = 0;
+    let mut dims = [0; 3];
+    while let Some(step) = sequence.next_step(&hw.memory)? {
+        let volume = &step.volume;
+        if engine.is_none() {
+            dims = volume.dims;
+            subcube = if hw.occupancy.subcube > 0 {
+                hw.occupancy.subcube
+            } else {
+                8.min(*volume.dims.iter().min().expect("three axes"))
+                    .next_power_of_two()
+                    .max(2)
+            };
+            let log2 = check_subcube_size(subcube, volume.dims)?;
+            engine = Some(UpdateEngine::new(hw, volume.dims, volume.bits, log2, 0)?);
+        }
+        let engine = engine.as_mut().expect("created above");
+        let update = engine.update(&step.update, policy)?;
+        let map_cycles = match options.map {
+            MapMode::DuringUpdate | MapMode::Rescan => update.rescan_cycles + update.map_cycles,
+            MapMode::Scan => engine.scan().cycles + engine.table().subcubes() as u64,
+            MapMode::None => 0,
+        };
+        let memory = engine.memory_volume(&volume.name)?;
+        if memory.data != volume.data {
+            let i = (0..volume.data.len())
+                .find(|&i| memory.data[i] != volume.data[i])
+                .expect("the volumes differ");
+            return Err(Error::Invalid(format!(
+                "step {}: after the update voxel {i} holds {} in SDRAM but the volume has {}",
+                step.index, memory.data[i], volume.data[i]
+            )));
+        }
+        let mut prepared = run::prepare(&render_run, &memory)?;
+        let mut map = None;
+        let mut stale = 0;
+        if options.map != MapMode::None {
+            let table = &prepared.fixed().expect("cycle model").table;
+            let visible = |lo: u16, hi: u16| table.any_visible(lo, hi);
+            let ours = engine.map(kind, visible);
+            let log2 = ours.cube_log2;
+            let exact = OccupancyMap::build(&memory, kind, log2, 0, visible);
+            for z in 0..exact.dims[2] {
+                for y in 0..exact.dims[1] {
+                    for x in 0..exact.dims[0] {
+                        let (a, b) = (ours.occupied([x, y, z]), exact.occupied([x, y, z]));
+                        if b && !a {
+                            return Err(Error::Invalid(format!(
+                                "step {}: the {} map leaves sub-cube {x},{y},{z} empty but the \
+                                 volume in memory has visible voxels there: not conservative",
+                                step.index,
+                                kind.label()
+                            )));
+                        }
+                        stale += (a && !b) as u64;
+                    }
+                }
+            }
+            prepared.set_occupancy_map(ours.clone())?;
+            map = Some(ours);
+        }
+        let report = run::execute(&render_run, &prepared, run::Probes::default())?;
+        let render_cycles = report.measurements.cycles.expect("cycle model");
+        let equals_non_leaping = if options.verify && options.map != MapMode::None {
+            let plain = run::prepare(&plain_run, &memory)?;
+            let reference = run::execute(&plain_run, &plain, run::Probes::default())?;
+            let same = reference.frame.pixels == report.frame.pixels;
+            if !same {
+                return Err(Error::Invalid(format!(
+                    "step {}: the leaping image differs from the non-leaping image",
+                    step.index
+                )));
+            }
+            Some(same)
+        } else {
+            None
+        };
+        let total_cycles = update.write_cycles + map_cycles + render_cycles;
+        let step_report = StepReport {
+            step: step.index,
+            volume: volume.name.clone(),
+            regions: update.regions,
+            voxels_written: update.voxels_written,
+            voxels_touched: step.touched_voxels.as_ref().map(|t| t.len() as u64),
+            update_cycles: update.write_cycles,
+            map_cycles,
+            render_cycles,
+            total_cycles,
+            stale_subcubes: stale,
+            empty_subcubes_percent: report
+                .measurements
+                .skippable_subcubes_percent
+                .unwrap_or(0.0),
+            equals_non_leaping,
+        };
+        observe(&StepView {
+            report: &step_report,
+            volume,
+            memory: &memory,
+            map: map.as_ref(),
+            frame: &report.frame,
+        })?;
+        steps.push(step_report);
+    }
+    let fps_of = |reports: &[StepReport]| {
+        let cycles: u64 = reports.iter().map(|s| s.total_cycles).sum();
+        reports.len() as f64 * hw.clock.frequency_mhz * 1e6 / (cycles.max(1) as f64)
+    };
+    let later = if steps.len() > 1 {
+        &steps[1..]
+    } else {
+        &steps[..]
+    };
+    let mean = |f: fn(&StepReport) -> u64| {
+        later.iter().map(f).sum::<u64>() as f64 / later.len().max(1) as f64
+    };
+    Ok(SequenceReport {
+        source: sequence.name.clone(),
+        dims,
+        map: options.map,
+        subcube,
+        brick: options.brick,
+        clock_mhz: hw.clock.frequency_mhz,
+        ordering: "fence",
+        fps: fps_of(&steps),
+        steady_fps: fps_of(later),
+        mean_update_cycles: mean(|s| s.update_cycles),
+        mean_map_cycles: mean(|s| s.map_cycles),
+        mean_render_cycles: mean(|s| s.render_cycles),
+        steps,
+    })
 }

@@ -197,6 +197,28 @@ impl<'v> Prepared<'v> {
         }
     }
 
+    /// Replaces the occupancy map the run leaps with by `map` (built elsewhere: the update
+    /// engine's map of a dynamic sequence, conservative for the volume). An error when the run
+    /// does not leap with an occupancy map or `map` has another grid.
+    pub fn set_occupancy_map(&mut self, map: crate::occupancy::OccupancyMap) -> Result<()> {
+        match &mut self.renderer {
+            Renderer::Fixed(r) => match &r.map {
+                Some(old) if old.dims == map.dims && old.cube_log2 == map.cube_log2 => {
+                    r.map = Some(map);
+                    Ok(())
+                }
+                _ => Err(Error::Invalid(format!(
+                    "the run leaps without an occupancy map of {:?} sub-cubes of edge {}",
+                    map.dims,
+                    map.subcube_size()
+                ))),
+            },
+            Renderer::Float(_) => Err(Error::Invalid(
+                "the float model does not leap with an occupancy map".into(),
+            )),
+        }
+    }
+
     /// Leap values in the volume: what preprocessing found.
     pub fn leap_value_stats(&self) -> Option<LeapValueStats> {
         match &self.renderer {

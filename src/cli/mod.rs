@@ -9,6 +9,7 @@ mod occupancy;
 mod precision;
 mod render;
 mod results;
+mod sequence;
 mod sim;
 mod sweep;
 mod update;
@@ -71,6 +72,9 @@ enum Command {
     /// Volume updates: a download over the host link with the maps built on the way, a scan
     /// pass, a transfer-function change and a partial update, in cycles (docs/dynamic.md).
     Update(update::UpdateArgs),
+    /// The frame loop of a dynamic sequence (metaballs, TSDF fusion, a folder of time steps):
+    /// per step update, map and render cycles, and the frames per second (docs/dynamic.md).
+    Sequence(sequence::SequenceArgs),
 }
 
 pub fn run(cli: Cli) -> Result<()> {
@@ -94,6 +98,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Plot(args) => results::plot(args),
         Command::Demo(args) => demo::run(args),
         Command::Update(args) => update::run(args),
+        Command::Sequence(args) => sequence::run(args),
     }
 }
 

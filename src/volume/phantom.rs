@@ -56,15 +56,27 @@ pub enum PhantomKind {
     /// voxels, enclosed in the metal, cores exactly 0; small sizes fit fewer, ~2-3 at 32).
     /// Air and bore are exactly 0 (18-20 % occupied).
     Cast,
+    /// Depth-camera fusion: a truncated signed distance volume (TSDF) with per-voxel weights,
+    /// as a depth-camera reconstruction builds it. The scene (a sphere and a box moving in front
+    /// of a back wall at z = 0.85·(size − 1), [`tsdf_scene_depth`]) is seen by a pinhole depth
+    /// camera on the −z side; one depth image per time unit, at times t − ⌊t⌋, …, t − 1, t, is
+    /// integrated ([`TsdfFusion`]): only voxels within the truncation distance μ =
+    /// max(2, size/32) voxels of the observed surface are touched (running average of sdf/μ,
+    /// weight capped at [`TSDF_MAX_WEIGHT`]). Voxel value: 0 where never observed, else
+    /// round(128 − 127·tsdf) in 1..=255: 1 at μ in front of the surface, 128 on it, 255 at μ
+    /// behind it (the iso-surface is value 128). The seed sets the phases of the motion;
+    /// t ≤ 1000 (at t < 0 only the image at t is integrated).
+    Tsdf,
 }
 
 impl PhantomKind {
-    pub const ALL: [PhantomKind; 5] = [
+    pub const ALL: [PhantomKind; 6] = [
         PhantomKind::Sphere,
         PhantomKind::Shells,
         PhantomKind::Jet,
         PhantomKind::Metaballs,
         PhantomKind::Cast,
+        PhantomKind::Tsdf,
     ];
 
     /// Name used in specs (`sphere`, `shells`, ...).
@@ -75,6 +87,7 @@ impl PhantomKind {
             PhantomKind::Jet => "jet",
             PhantomKind::Metaballs => "metaballs",
             PhantomKind::Cast => "cast",
+            PhantomKind::Tsdf => "tsdf",
         }
     }
 
@@ -86,6 +99,11 @@ impl PhantomKind {
     fn uses_seed(self) -> bool {
         !matches!(self, PhantomKind::Sphere | PhantomKind::Shells)
     }
+
+    /// Whether the time changes the volume (metaballs, TSDF).
+    pub fn uses_time(self) -> bool {
+        matches!(self, PhantomKind::Metaballs | PhantomKind::Tsdf)
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -93,7 +111,7 @@ pub struct PhantomSpec {
     pub kind: PhantomKind,
     pub size: usize,
     pub seed: u64,
-    /// Animation time for the metaballs (other phantoms ignore it).
+    /// Animation time for the metaballs and the TSDF (other phantoms ignore it).
     pub time: f32,
 }
 
@@ -110,14 +128,14 @@ impl PhantomSpec {
 
     /// Canonical volume name, e.g. `phantom:sphere:64` or `phantom:metaballs:64:seed=3:t=0.5`.
     /// Only options that change the volume are listed: the seed when it is not the default and
-    /// the kind uses it, the time for metaballs when not 0. `parse_spec` of the part after
+    /// the kind uses it, the time for metaballs and TSDF when not 0. `parse_spec` of the part after
     /// `phantom:` gives a spec generating the same volume.
     pub fn name(&self) -> String {
         let mut name = format!("phantom:{}:{}", self.kind.name(), self.size);
         if self.kind.uses_seed() && self.seed != DEFAULT_SEED {
             name += &format!(":seed={}", self.seed);
         }
-        if self.kind == PhantomKind::Metaballs && self.time != 0.0 {
+        if self.kind.uses_time() && self.time != 0.0 {
             // `{}` prints the shortest text that parses back to the same f32.
             name += &format!(":t={}", self.time);
         }
@@ -135,6 +153,13 @@ impl PhantomSpec {
         }
         if !self.time.is_finite() {
             return Err(format!("time {} must be finite", self.time));
+        }
+        if self.kind == PhantomKind::Tsdf && self.time > TSDF_MAX_TIME {
+            return Err(format!(
+                "time step t={} out of range: the TSDF phantom integrates one depth image per \
+                 time unit up to t, so t must be at most {TSDF_MAX_TIME}",
+                self.time
+            ));
         }
         Ok(())
     }
@@ -210,6 +235,7 @@ pub fn generate(spec: &PhantomSpec) -> Volume {
         PhantomKind::Jet => jet(n, spec.seed),
         PhantomKind::Metaballs => metaballs(n, spec.seed, spec.time as f64),
         PhantomKind::Cast => cast(n, spec.seed),
+        PhantomKind::Tsdf => TsdfFusion::at(n, spec.seed, spec.time as f64).values(),
     };
     Volume::new(spec.name(), [n; 3], [1.0; 3], 8, data)
         .expect("generated phantoms have valid dims and 8-bit values")
@@ -279,6 +305,199 @@ fn jet(n: usize, seed: u64) -> Vec<u16> {
             }
         }
     })
+}
+
+/// Largest time of the TSDF phantom (one depth image integrated per time unit).
+pub const TSDF_MAX_TIME: f32 = 1000.0;
+/// Cap of a TSDF voxel's weight: the running average follows a moving surface with a memory
+/// of about this many depth images.
+pub const TSDF_MAX_WEIGHT: u8 = 8;
+
+/// The TSDF phantom's truncation distance μ in voxels: max(2, size/32).
+pub fn tsdf_truncation(n: usize) -> f64 {
+    (n as f64 / 32.0).max(2.0)
+}
+
+/// The pinhole depth camera of the TSDF phantom: eye at ((n−1)/2, (n−1)/2, −0.75·n) looking
+/// along +z, an n×n image with a focal length of 0.75·n pixels (the front face fills it).
+fn tsdf_camera(n: usize) -> (DVec3, f64) {
+    let s = (n - 1) as f64 / 2.0;
+    (DVec3::new(s, s, -0.75 * n as f64), 0.75 * n as f64)
+}
+
+/// Sphere (centre, radius) and box (centre, half extents) of the TSDF scene at `time`.
+fn tsdf_scene(n: usize, seed: u64, time: f64) -> ((DVec3, f64), (DVec3, DVec3)) {
+    let (nf, s) = (n as f64, (n - 1) as f64);
+    let mut rng = Rng(seed);
+    let phase: [f64; 5] = [(); 5].map(|_| rng.range(0.0, TAU));
+    let sphere = DVec3::new(
+        s * (0.5 + 0.22 * sin(0.11 * time + phase[0])),
+        s * (0.42 + 0.08 * sin(0.07 * time + phase[1])),
+        s * (0.45 + 0.1 * sin(0.05 * time + phase[2])),
+    );
+    let cube = DVec3::new(
+        s * (0.5 - 0.2 * sin(0.09 * time + phase[3])),
+        s * (0.62 + 0.06 * sin(0.13 * time + phase[4])),
+        s * 0.55,
+    );
+    (
+        (sphere, 0.15 * nf),
+        (cube, DVec3::new(0.12 * nf, 0.1 * nf, 0.12 * nf)),
+    )
+}
+
+/// The depth image of the TSDF scene (motion phases from `seed`) at `time`: per pixel (x fastest, n×n) the depth along the
+/// camera axis (z − eye.z) of the nearest surface: the sphere, the box or the back wall at
+/// z = 0.85·(n − 1), which every ray hits.
+pub fn tsdf_scene_depth(n: usize, seed: u64, time: f64) -> Vec<f64> {
+    let (eye, focal) = tsdf_camera(n);
+    let ((centre, radius), (cube, half)) = tsdf_scene(n, seed, time);
+    let wall = 0.85 * (n - 1) as f64 - eye.z;
+    let half_image = n as f64 / 2.0;
+    let mut depth = vec![0.0; n * n];
+    depth.par_chunks_mut(n).enumerate().for_each(|(v, row)| {
+        for (u, d) in row.iter_mut().enumerate() {
+            // z component 1: the ray parameter is the depth along the axis.
+            let dir = DVec3::new(
+                (u as f64 + 0.5 - half_image) / focal,
+                (v as f64 + 0.5 - half_image) / focal,
+                1.0,
+            );
+            let mut nearest = wall;
+            let oc = eye - centre;
+            let (a, b, c) = (
+                dir.dot(dir),
+                2.0 * dir.dot(oc),
+                oc.dot(oc) - radius * radius,
+            );
+            let disc = b * b - 4.0 * a * c;
+            if disc >= 0.0 {
+                let t = (-b - disc.sqrt()) / (2.0 * a);
+                if t > 0.0 && t < nearest {
+                    nearest = t;
+                }
+            }
+            let (lo, hi) = (cube - half, cube + half);
+            let (mut enter, mut exit) = (0.0f64, f64::INFINITY);
+            for axis in 0..3 {
+                let (o, dd) = (eye[axis], dir[axis]);
+                if dd == 0.0 {
+                    if o < lo[axis] || o > hi[axis] {
+                        exit = -1.0;
+                    }
+                } else {
+                    let (t1, t2) = ((lo[axis] - o) / dd, (hi[axis] - o) / dd);
+                    enter = enter.max(t1.min(t2));
+                    exit = exit.min(t1.max(t2));
+                }
+            }
+            if enter <= exit && enter > 0.0 && enter < nearest {
+                nearest = enter;
+            }
+            *d = nearest;
+        }
+    });
+    depth
+}
+
+/// Where voxel `p` projects in the TSDF phantom's depth image: the pixel (x fastest) and the
+/// voxel's depth along the camera axis; None outside the image.
+pub fn tsdf_project(n: usize, p: [usize; 3]) -> Option<(usize, f64)> {
+    let (eye, focal) = tsdf_camera(n);
+    let depth = p[2] as f64 - eye.z;
+    let half_image = n as f64 / 2.0;
+    let u = (focal * (p[0] as f64 - eye.x) / depth + half_image).floor();
+    let v = (focal * (p[1] as f64 - eye.y) / depth + half_image).floor();
+    let inside = |c: f64| c >= 0.0 && c < n as f64;
+    (inside(u) && inside(v)).then(|| (v as usize * n + u as usize, depth))
+}
+
+/// A depth-camera reconstruction in progress: per voxel a truncated signed distance (in units
+/// of μ, positive in front of the surface) and a weight (0: never observed).
+#[derive(Clone, Debug)]
+pub struct TsdfFusion {
+    pub size: usize,
+    pub seed: u64,
+    tsdf: Vec<f32>,
+    weight: Vec<u8>,
+}
+
+impl TsdfFusion {
+    /// An empty reconstruction (every weight 0).
+    pub fn new(n: usize, seed: u64) -> TsdfFusion {
+        TsdfFusion {
+            size: n,
+            seed,
+            tsdf: vec![0.0; n * n * n],
+            weight: vec![0; n * n * n],
+        }
+    }
+
+    /// The reconstruction the `phantom:tsdf:N:seed=S:t=T` spec describes: the depth images at
+    /// t − ⌊t⌋, …, t − 1, t integrated in that order (only t's when t < 1).
+    pub fn at(n: usize, seed: u64, time: f64) -> TsdfFusion {
+        let mut fusion = TsdfFusion::new(n, seed);
+        let whole = time.floor().max(0.0) as usize;
+        for k in (0..=whole).rev() {
+            fusion.integrate(time - k as f64);
+        }
+        fusion
+    }
+
+    /// Integrates the depth image of the scene at `time`: every voxel whose projective signed
+    /// distance to the observed surface (image depth − voxel depth) lies within ±μ is averaged
+    /// in; no other voxel is touched. Returns the touched voxels' indices (x fastest), sorted.
+    pub fn integrate(&mut self, time: f64) -> Vec<usize> {
+        let n = self.size;
+        let depth = tsdf_scene_depth(n, self.seed, time);
+        let mu = tsdf_truncation(n);
+        let touched: Vec<Vec<usize>> = self
+            .tsdf
+            .par_chunks_mut(n * n)
+            .zip(self.weight.par_chunks_mut(n * n))
+            .enumerate()
+            .map(|(z, (tsdf, weight))| {
+                let mut touched = Vec::new();
+                for y in 0..n {
+                    for x in 0..n {
+                        let Some((pixel, voxel_depth)) = tsdf_project(n, [x, y, z]) else {
+                            continue;
+                        };
+                        let sdf = depth[pixel] - voxel_depth;
+                        if sdf.abs() > mu {
+                            continue;
+                        }
+                        let i = y * n + x;
+                        let w = weight[i] as f64;
+                        let value = (tsdf[i] as f64 * w + sdf / mu) / (w + 1.0);
+                        tsdf[i] = value as f32;
+                        weight[i] = (weight[i] + 1).min(TSDF_MAX_WEIGHT);
+                        touched.push(z * n * n + i);
+                    }
+                }
+                touched
+            })
+            .collect();
+        touched.concat()
+    }
+
+    /// The 8-bit voxel of entry `i`: 0 never observed, else round(128 − 127·tsdf).
+    pub fn value(&self, i: usize) -> u16 {
+        if self.weight[i] == 0 {
+            0
+        } else {
+            to_voxel(128.0 - 127.0 * self.tsdf[i] as f64).max(1)
+        }
+    }
+
+    /// Every voxel's 8-bit value, x fastest.
+    pub fn values(&self) -> Vec<u16> {
+        (0..self.tsdf.len()).map(|i| self.value(i)).collect()
+    }
+
+    pub fn weight(&self, i: usize) -> u8 {
+        self.weight[i]
+    }
 }
 
 const METABALLS: usize = 20;

@@ -1,0 +1,129 @@
+//! `vizsim sequence`: the frame loop of a dynamic volume sequence — per time step the update
+//! engine's writes, the map's cycles and the frame on the cycle model, and the sequence's
+//! frames per second (docs/dynamic.md). The loop is `vizsim::dynamic::run_sequence`.
+
+use anyhow::{Context, Result};
+use clap::Args;
+use vizsim::dynamic::{MapMode, SequenceOptions};
+use vizsim::run::{Model, RunDescription};
+
+use super::HardwareArgs;
+use vizsim::camera::parse_image_size;
+
+#[derive(Args)]
+pub struct SequenceArgs {
+    /// The time steps: phantom:metaballs[:SIZE][:seed=N][:t=T0] (steps --dt apart),
+    /// phantom:tsdf[:SIZE][:seed=N][:t=T0] (one depth image fused per step) or a folder of
+    /// .raw/.nrrd/.nhdr files of one size (file-name order).
+    #[arg(long)]
+    source: String,
+    /// Number of time steps (step 0 downloads the whole volume).
+    #[arg(long, default_value_t = 30)]
+    steps: usize,
+    /// Metaballs: time between steps.
+    #[arg(long, default_value_t = 0.05)]
+    dt: f32,
+    /// Edge of the bricks a partial update sends.
+    #[arg(long, default_value_t = 8)]
+    brick: usize,
+    /// How the occupancy map follows the volume: during-update (conservative), rescan (during
+    /// the update, partly written sub-cubes read back: exact), scan (a scan pass per step:
+    /// exact) or none (no leaping).
+    #[arg(long, default_value = "during-update", value_parser = MapMode::parse)]
+    map: MapMode,
+    /// Transfer function: `zero`, `class`, a preset name, or a TOML file.
+    #[arg(long, default_value = "class")]
+    tf: String,
+    /// `front` or `orbit:K/N`.
+    #[arg(long, default_value = "front")]
+    view: String,
+    /// Image size WxH.
+    #[arg(long, default_value = "256x256")]
+    size: String,
+    /// Render every frame again without leaping and require the same image.
+    #[arg(long)]
+    verify: bool,
+    #[command(flatten)]
+    hardware: HardwareArgs,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(args: SequenceArgs) -> Result<()> {
+    let config = args.hardware.load(&[])?;
+    anyhow::ensure!(
+        args.map == MapMode::None || args.hardware.subcube.is_some(),
+        "--map {}: give the map's sub-cube size with --subcube (or --map none)",
+        args.map.name()
+    );
+    let run = RunDescription {
+        view: args.view.clone(),
+        size: parse_image_size(&args.size).context("--size")?,
+        ..RunDescription::new(&args.source, &args.tf, Model::Cycle, config)
+    };
+    run.validate()?;
+    if !args.json {
+        println!("{}", args.hardware.resolved_line(&run.hardware));
+    }
+    let options = SequenceOptions {
+        steps: args.steps,
+        dt: args.dt,
+        brick: args.brick,
+        map: args.map,
+        verify: args.verify,
+    };
+    let json = args.json;
+    let report = vizsim::dynamic::run_sequence(&run, &args.source, &options, |view| {
+        if !json {
+            let s = view.report;
+            println!(
+                "step {:>3} {}: {} regions, {} voxels written; update {} + map {} + render {} = {} cycles; \
+                 {:.1} % empty sub-cubes, {} stale{}",
+                s.step,
+                s.volume,
+                s.regions,
+                s.voxels_written,
+                s.update_cycles,
+                s.map_cycles,
+                s.render_cycles,
+                s.total_cycles,
+                s.empty_subcubes_percent,
+                s.stale_subcubes,
+                match s.equals_non_leaping {
+                    Some(true) => "; image = non-leaping image",
+                    _ => "",
+                }
+            );
+        }
+        Ok(())
+    })?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    let ms = |cycles: f64| cycles / (report.clock_mhz * 1e3);
+    println!(
+        "{} {:?}, map {}, {}³ sub-cubes, {}³ bricks, ordering: {} (update, map, render in turn)",
+        report.source,
+        report.dims,
+        report.map.name(),
+        report.subcube,
+        report.brick,
+        report.ordering
+    );
+    println!(
+        "steps after the first, mean: update {:.0} ({:.2} ms) + map {:.0} ({:.2} ms) + render {:.0} ({:.2} ms) cycles",
+        report.mean_update_cycles,
+        ms(report.mean_update_cycles),
+        report.mean_map_cycles,
+        ms(report.mean_map_cycles),
+        report.mean_render_cycles,
+        ms(report.mean_render_cycles),
+    );
+    println!(
+        "sequence: {:.2} frames/s after the first step ({:.2} frames/s with the download of step 0)",
+        report.steady_fps, report.fps
+    );
+    Ok(())
+}
