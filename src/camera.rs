@@ -270,8 +270,8 @@ pub const MAX_INTERLEAVE: u32 = 64;
 /// Interleaved sampling (issue 15, part 4): the first-sample offset of pixel (px, py), in
 /// sample steps, from an N×N pattern. The pattern holds each of 0, 1/N², ..., (N²−1)/N² once:
 /// cell (i, j) = (px mod N, py mod N) gets rank ((i·N + j)·g) mod N², g the smallest integer
-/// >= 0.618·N² coprime with N (a permutation that spreads neighbouring ranks apart). N = 1
-/// gives 0 everywhere.
+/// at least 0.618·N² that is coprime with N (a permutation that spreads neighbouring ranks
+/// apart). N = 1 gives 0 everywhere.
 pub fn interleave_offset(px: u32, py: u32, n: u32) -> f32 {
     if n <= 1 {
         return 0.0;

@@ -193,7 +193,7 @@ impl CameraPath {
         }
         let num = k as u64 * segments;
         let den = (n - 1) as u64;
-        if num % den == 0 {
+        if num.is_multiple_of(den) {
             // Exactly on a key.
             return self.pose_at((num / den) as f64, &what);
         }
