@@ -415,3 +415,93 @@ fn bad_paths_give_clear_errors() {
     run.view = format!("path:{missing}:0/2");
     assert!(run.validate().is_err());
 }
+
+#[test]
+fn experiment_files_take_a_camera_path() {
+    use vizsim::experiment::spec::expand;
+    let text = r#"
+name = "flythrough"
+datasets = ["phantom:tube:16"]
+tf = ["class"]
+modes = ["ert", "ert+leap4"]
+models = ["step"]
+[frames]
+orbit = 8
+every = 4
+size = "16x16"
+projection = "persp"
+path = "configs/paths/tube.toml"
+"#;
+    let expansion = expand(text, "test", None).unwrap();
+    let views: Vec<&str> = expansion.runs.iter().map(|r| r.run.view.as_str()).collect();
+    assert_eq!(views.len(), 4, "{views:?}");
+    for v in &views {
+        assert!(
+            v.starts_with("path:configs/paths/tube.toml:") && v.ends_with("/8"),
+            "{v}"
+        );
+    }
+    // Without `path` the views are the orbit's, and the key is unchanged.
+    let orbit = expand(
+        &text.replace("path = \"configs/paths/tube.toml\"\n", ""),
+        "test",
+        None,
+    )
+    .unwrap();
+    assert!(orbit.runs.iter().all(|r| r.run.view.starts_with("orbit:")));
+    assert!(!toml::to_string(&orbit.experiment).unwrap().contains("path"));
+    // A bad path file is an error naming frames.path.
+    let e = match expand(&text.replace("tube.toml", "no-such.toml"), "test", None) {
+        Ok(_) => panic!("a missing path file was accepted"),
+        Err(e) => e.to_string(),
+    };
+    assert!(
+        e.contains("frames.path") && e.contains("no-such.toml"),
+        "{e}"
+    );
+    // The runs render through the one run path.
+    let volume = vizsim::volume::dataset::load("phantom:tube:16", None).unwrap();
+    let run = &expansion.runs[1].run;
+    let prepared = prepare(run, &volume).unwrap();
+    let report = execute(run, &prepared, Probes::default()).unwrap();
+    assert!(report.stats.samples > 0);
+}
+
+#[test]
+fn render_and_sim_accept_a_path_view() {
+    let bin = env!("CARGO_BIN_EXE_vizsim");
+    for (cmd, extra) in [("render", &["--model", "fixed"][..]), ("sim", &[][..])] {
+        let out = scratch(&format!("{cmd}.png"));
+        let status = std::process::Command::new(bin)
+            .args([cmd, "--dataset", "phantom:tube:16", "--size", "16x16"])
+            .args([
+                "--projection",
+                "persp",
+                "--view",
+                "path:configs/paths/tube.toml:3/10",
+            ])
+            .args(["--set", "ray.interleave=2", "-o"])
+            .arg(&out)
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(
+            status.status.success(),
+            "{cmd}: {}",
+            String::from_utf8_lossy(&status.stderr)
+        );
+        assert!(out.exists(), "{cmd}");
+        let bad = std::process::Command::new(bin)
+            .args([cmd, "--dataset", "phantom:tube:16", "--size", "16x16"])
+            .args(["--view", "path:configs/paths/tube.toml:10/10", "-o"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&bad.stderr);
+        assert!(
+            !bad.status.success() && err.contains("10 of 10"),
+            "{cmd}: {err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+    }
+}
