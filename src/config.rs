@@ -520,7 +520,8 @@ impl HardwareConfig {
         // The default as written in its file: sections the serialisation leaves out when they
         // are at their defaults ([leap_values]...) are there too, field by field.
         let mut default_fields = Vec::new();
-        if let Ok(table) = DEFAULT_TOML.parse::<toml::Table>() {
+        if let Ok(mut table) = DEFAULT_TOML.parse::<toml::Table>() {
+            insert_default_sections(&mut table);
             flatten("", &table, &mut default_fields);
         }
         let default: std::collections::BTreeMap<String, toml::Value> =

@@ -58,7 +58,12 @@ fn demo_renders_what_is_there_and_says_what_it_skipped() {
             name.to_string_lossy().starts_with("gallery-phantom")
         })
         .count();
-    assert_eq!(galleries, 5, "one gallery per phantom");
+    assert_eq!(
+        galleries,
+        vizsim::volume::phantom::PhantomKind::ALL.len(),
+        "one gallery per phantom"
+    );
+    assert!(out_dir.join("flythrough-tube.png").is_file(), "{stdout}");
 }
 
 #[test]
