@@ -48,13 +48,19 @@ pub struct Camera {
 }
 
 /// A named view of a volume: which side the camera looks from, and the orbit position.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum View {
     /// Looking along +y with +z up (the dataset's front).
     Front,
     /// Frame `k` of an `n`-frame orbit about the vertical (z) axis through the volume centre,
     /// starting at the front view; 360/n degrees per frame.
     Orbit { k: u32, n: u32 },
+    /// Frame `k` of `n` along a camera path file (`crate::path`): `path:FILE:K/N`.
+    Path {
+        path: std::sync::Arc<crate::path::CameraPath>,
+        k: u32,
+        n: u32,
+    },
 }
 
 impl View {
@@ -64,9 +70,13 @@ impl View {
         }
         let bad = || {
             Error::Invalid(format!(
-                "view `{text}`: expected `front` or `orbit:K/N` with 0 <= K < N (e.g. orbit:3/72)"
+                "view `{text}`: expected `front`, `orbit:K/N` or `path:FILE:K/N` with 0 <= K < N \
+                 (e.g. orbit:3/72)"
             ))
         };
+        if let Some(rest) = text.strip_prefix("path:") {
+            return View::parse_path(text, rest);
+        }
         let rest = text.strip_prefix("orbit:").ok_or_else(bad)?;
         let (k, n) = rest.split_once('/').ok_or_else(bad)?;
         let k: u32 = k.parse().map_err(|_| bad())?;
@@ -77,10 +87,40 @@ impl View {
         Ok(View::Orbit { k, n })
     }
 
-    /// Rotation angle about the vertical axis, in degrees.
+    /// `path:FILE:K/N`: loads and checks the file (every one of the N frames).
+    fn parse_path(text: &str, rest: &str) -> Result<View> {
+        let bad = |msg: &str| {
+            Error::Invalid(format!(
+                "view `{text}`: {msg}; expected `path:FILE:K/N` with 0 <= K < N (e.g. \
+                 path:configs/paths/tube.toml:10/120)"
+            ))
+        };
+        let (file, frame) = rest.rsplit_once(':').ok_or_else(|| bad("no `:K/N`"))?;
+        let (k, n) = frame.split_once('/').ok_or_else(|| bad("no `/` in K/N"))?;
+        let k: u32 = k.parse().map_err(|_| bad("K is not a whole number"))?;
+        let n: u32 = n.parse().map_err(|_| bad("N is not a whole number"))?;
+        if n == 0 || k >= n || n > crate::path::MAX_PATH_FRAMES {
+            return Err(bad(&format!(
+                "frame {k} of {n} out of range (N at most {})",
+                crate::path::MAX_PATH_FRAMES
+            )));
+        }
+        if file.is_empty() {
+            return Err(bad("empty file name"));
+        }
+        let path = crate::path::CameraPath::load(std::path::Path::new(file))?;
+        path.check_frames(n)?;
+        Ok(View::Path {
+            path: std::sync::Arc::new(path),
+            k,
+            n,
+        })
+    }
+
+    /// Rotation angle about the vertical axis, in degrees (0 for a path view).
     pub fn angle_deg(&self) -> f64 {
         match *self {
-            View::Front => 0.0,
+            View::Front | View::Path { .. } => 0.0,
             View::Orbit { k, n } => 360.0 * k as f64 / n as f64,
         }
     }
@@ -135,6 +175,9 @@ impl Camera {
         width: u32,
         height: u32,
     ) -> Result<Camera> {
+        if let View::Path { path, k, n } = &view {
+            return path.camera(extent, *k, *n, projection, width, height);
+        }
         let centre = extent * 0.5;
         let largest = extent.max_element().max(1.0);
         let angle = (view.angle_deg()).to_radians();
@@ -219,4 +262,53 @@ pub fn parse_image_size(text: &str) -> Result<(u32, u32)> {
     let h: u32 = h.trim().parse().map_err(|_| bad())?;
     check_image_size(w, h)?;
     Ok((w, h))
+}
+
+/// Largest accepted interleaving pattern side N (`ray.interleave`).
+pub const MAX_INTERLEAVE: u32 = 64;
+
+/// Interleaved sampling (issue 15, part 4): the first-sample offset of pixel (px, py), in
+/// sample steps, from an N×N pattern. The pattern holds each of 0, 1/N², ..., (N²−1)/N² once:
+/// cell (i, j) = (px mod N, py mod N) gets rank ((i·N + j)·g) mod N², g the smallest integer
+/// at least 0.618·N² that is coprime with N (a permutation that spreads neighbouring ranks
+/// apart). N = 1 gives 0 everywhere.
+pub fn interleave_offset(px: u32, py: u32, n: u32) -> f32 {
+    if n <= 1 {
+        return 0.0;
+    }
+    let n = n as u64;
+    let cells = n * n;
+    let mut g = ((cells as f64) * 0.618_034).ceil() as u64;
+    while gcd(g, n) != 1 {
+        g += 1;
+    }
+    let (i, j) = (px as u64 % n, py as u64 % n);
+    let rank = ((i * n + j) * g) % cells;
+    (rank as f64 / cells as f64) as f32
+}
+
+fn gcd(mut a: u64, mut b: u64) -> u64 {
+    while b != 0 {
+        (a, b) = (b, a % b);
+    }
+    a
+}
+
+/// The ray of pixel (px, py) with interleaved sampling (`settings.interleave`): samples sit at
+/// t = (k − o)·S instead of k·S, o = `interleave_offset`. Realised by moving the origin back
+/// by o·S along the ray (and the near plane forward by as much, so it stays in place): every
+/// model keeps its convention of samples at t' = k·S on the shifted ray, so the float
+/// reference, the fixed-point setup and the cycle model (which uses that setup) place the same
+/// samples. Off (N = 1): the ray unchanged, bit for bit.
+pub fn interleave_ray(ray: Ray, px: u32, py: u32, settings: &crate::render::RenderSettings) -> Ray {
+    let o = interleave_offset(px, py, settings.interleave);
+    if o == 0.0 {
+        return ray;
+    }
+    let shift = o * settings.sample_spacing;
+    Ray {
+        origin: ray.origin - ray.dir * shift,
+        dir: ray.dir,
+        t_min: ray.t_min + shift,
+    }
 }

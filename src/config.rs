@@ -232,6 +232,19 @@ pub struct RayConfig {
     /// Fraction bits of the per-sample increment V (its integer part is as wide as the sample
     /// spacing needs).
     pub increment_frac_bits: u32,
+    /// Interleaved sampling: pixel (px, py) shifts its first sample by an offset in [0, 1)
+    /// sample steps from an N×N pattern (`camera::interleave_offset`); 1 = off, 0 is an
+    /// error. Written out only when not 1, so existing run keys are unchanged.
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub interleave: u32,
+}
+
+fn one() -> u32 {
+    1
+}
+
+fn is_one(n: &u32) -> bool {
+    *n == 1
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -507,7 +520,8 @@ impl HardwareConfig {
         // The default as written in its file: sections the serialisation leaves out when they
         // are at their defaults ([leap_values]...) are there too, field by field.
         let mut default_fields = Vec::new();
-        if let Ok(table) = DEFAULT_TOML.parse::<toml::Table>() {
+        if let Ok(mut table) = DEFAULT_TOML.parse::<toml::Table>() {
+            insert_default_sections(&mut table);
             flatten("", &table, &mut default_fields);
         }
         let default: std::collections::BTreeMap<String, toml::Value> =
@@ -541,6 +555,12 @@ impl HardwareConfig {
         let r = &self.ray;
         range("ray.position_int_bits", r.position_int_bits as u64, 2, 16)?;
         range("ray.position_frac_bits", r.position_frac_bits as u64, 1, 24)?;
+        range(
+            "ray.interleave",
+            r.interleave as u64,
+            1,
+            crate::camera::MAX_INTERLEAVE as u64,
+        )?;
         range(
             "ray.increment_frac_bits",
             r.increment_frac_bits as u64,
@@ -836,6 +856,10 @@ impl HardwareConfig {
 /// Adds the optional sections (`[bricks]`, `[clip]`, `[geometry]`) with their defaults where a
 /// table lacks them, and their missing fields (they are not written out when off).
 fn insert_default_sections(table: &mut toml::Table) {
+    // `ray.interleave` is written out only when not 1.
+    if let Some(toml::Value::Table(ray)) = table.get_mut("ray") {
+        ray.entry("interleave").or_insert(toml::Value::Integer(1));
+    }
     for (name, default) in [
         ("bricks", toml::Table::try_from(BricksConfig::default())),
         ("clip", toml::Table::try_from(ClipConfig::default())),

@@ -17,6 +17,7 @@ pub mod input;
 pub mod leapvalues;
 pub mod occupancy;
 pub mod output;
+pub mod path;
 pub mod plot;
 pub mod precision;
 pub mod render;

@@ -125,6 +125,7 @@ impl RunDescription {
             sample_spacing: self.sample_spacing,
             ert_threshold: self.hardware.ert_threshold(),
             shading: self.shading,
+            interleave: self.hardware.ray.interleave,
             ..RenderSettings::default()
         }
     }

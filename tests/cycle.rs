@@ -52,7 +52,7 @@ fn run(
 
 fn check_against_functional(volume: &Volume, tf: &TransferFunction, size: u32) {
     for (view, projection) in views() {
-        let cam = camera(volume, view, projection, size);
+        let cam = camera(volume, view.clone(), projection, size);
         for ert in [Some(0.95), None] {
             let settings = RenderSettings {
                 ert_threshold: ert,

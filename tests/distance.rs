@@ -46,7 +46,7 @@ fn distance_leapings() -> Vec<Leaping> {
 /// policies (inside `assert_leap_matches`).
 fn assert_distance_leaping_is_invisible(volume: &Volume, tf: &TransferFunction, size: u32) {
     for (view, projection) in views() {
-        let cam = camera(volume, view, projection, size);
+        let cam = camera(volume, view.clone(), projection, size);
         for ert in [Some(0.95), None] {
             let settings = RenderSettings {
                 ert_threshold: ert,
@@ -222,7 +222,7 @@ mod cycle {
     /// functional model's; one distance read per step (ERT off), at least one with ERT.
     fn check(volume: &Volume, tf: &TransferFunction, size: u32, sdram: bool) {
         for (view, projection) in views() {
-            let cam = camera(volume, view, projection, size);
+            let cam = camera(volume, view.clone(), projection, size);
             for ert in [Some(0.95), None] {
                 let settings = RenderSettings {
                     ert_threshold: ert,
@@ -521,7 +521,7 @@ fn cycle_model_equals_functional_with_a_distance_volume_on_real_data() {
     ] {
         let volume = dataset::load(name, Some(&dir)).unwrap();
         let tf = transfer::resolve("class", name).unwrap();
-        let cam = camera(&volume, view, projection, 32);
+        let cam = camera(&volume, view.clone(), projection, 32);
         let settings = RenderSettings {
             ert_threshold: ert,
             ..Default::default()

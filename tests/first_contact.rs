@@ -63,6 +63,7 @@ fn demo_renders_what_is_there_and_says_what_it_skipped() {
         vizsim::volume::phantom::PhantomKind::ALL.len(),
         "one gallery per phantom"
     );
+    assert!(out_dir.join("flythrough-tube.png").is_file(), "{stdout}");
 }
 
 #[test]

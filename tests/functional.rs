@@ -87,7 +87,7 @@ fn fixed_point_image_is_close_to_the_float_reference() {
     let tf = ball_tf();
     let settings = RenderSettings::default();
     for (view, projection) in views() {
-        let cam = camera(&volume, view, projection, 64);
+        let cam = camera(&volume, view.clone(), projection, 64);
         let fixed = render_fixed(&volume, &tf, &cam, &settings, Leaping::None);
         let float = FloatRenderer::new(&volume, &tf, &settings)
             .unwrap()
@@ -220,7 +220,7 @@ fn shading_keeps_leaping_invisible_and_stays_close_to_float() {
         ..Default::default()
     };
     for (view, projection) in views() {
-        let cam = camera(&volume, view, projection, 48);
+        let cam = camera(&volume, view.clone(), projection, 48);
         let plain = render_fixed(&volume, &tf, &cam, &settings, Leaping::None);
         for (subcube, hierarchy, kind) in [
             (2, false, OccupancyKind::Class),

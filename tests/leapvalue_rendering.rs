@@ -46,7 +46,7 @@ const HOMOGENEOUS: Leaping = Leaping::LeapValues {
 fn assert_empty_leaping_is_invisible(volume: &Volume, tf: &TransferFunction, size: u32) -> u64 {
     let mut saved = 0;
     for (view, projection) in views() {
-        let cam = camera(volume, view, projection, size);
+        let cam = camera(volume, view.clone(), projection, size);
         for ert in [Some(0.95), None] {
             let settings = RenderSettings {
                 ert_threshold: ert,
@@ -215,7 +215,7 @@ fn cycle_model_equals_functional_with_leap_values() {
     let tf = class_tf(&volume);
     let config = cycle_config();
     for (view, projection) in views() {
-        let cam = camera(&volume, view, projection, 24);
+        let cam = camera(&volume, view.clone(), projection, 24);
         for ert in [Some(0.95), None] {
             let settings = RenderSettings {
                 ert_threshold: ert,

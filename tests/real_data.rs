@@ -50,7 +50,7 @@ fn leaping_is_invisible_on_a_sample_of_256_cubed_views() {
     for (name, view, projection) in sample {
         let Some(volume) = load(name) else { return };
         let tf = transfer::resolve("class", name).unwrap();
-        let cam = camera(&volume, view, projection, 64);
+        let cam = camera(&volume, view.clone(), projection, 64);
         let settings = RenderSettings::default();
         let plain = render_fixed(&volume, &tf, &cam, &settings, Leaping::None);
         for (subcube, hierarchy, kind) in leapings {
@@ -158,7 +158,7 @@ fn cycle_model_equals_functional_on_real_data() {
     for (name, view, projection, ert, leaping) in cases {
         let Some(volume) = load(name) else { return };
         let tf = transfer::resolve("class", name).unwrap();
-        let cam = camera(&volume, view, projection, 32);
+        let cam = camera(&volume, view.clone(), projection, 32);
         let settings = RenderSettings {
             ert_threshold: ert,
             ..Default::default()

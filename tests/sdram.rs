@@ -573,7 +573,7 @@ fn cycle_model_with_sdram_equals_the_functional_image() {
     ] {
         config.memory.row_policy = policy;
         config.memory.overtaking = overtaking;
-        let cam = common::camera(&volume, view, projection, 32);
+        let cam = common::camera(&volume, view.clone(), projection, 32);
         let renderer =
             FixedRenderer::new(&volume, &tf, &RenderSettings::default(), &config, leaping).unwrap();
         // Fast: the clock jumps over dead cycles and idle controllers sleep. Reference: every

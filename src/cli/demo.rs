@@ -1,5 +1,5 @@
-//! `vizsim demo`: the main job on the embedded default: orbits and a gallery of the phantoms
-//! and the datasets present, and the quick experiment's sweep, tables and charts.
+//! `vizsim demo`: the main job on the embedded default: orbits, a fly-through along the tube
+//! phantom (virtual endoscopy), a gallery of the phantoms and the datasets present, and the quick experiment's sweep, tables and charts.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -97,6 +97,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
             path.display()
         );
     }
+    flythrough(out, frames, &hardware)?;
     for spec in &gallery {
         let volume = dataset::load(spec, dir.as_deref())?;
         let mut row = Vec::new();
@@ -128,6 +129,57 @@ pub fn run(args: DemoArgs) -> Result<()> {
         );
     }
     quick_experiment(dir.as_deref(), &out.join("quick"))
+}
+
+/// Virtual endoscopy: `frames` frames along the lumen of `phantom:tube:64`
+/// (configs/paths/tube.toml, embedded and written beside the sheet so the views can name it),
+/// perspective, as a contact sheet of 12.
+fn flythrough(out: &Path, frames: u32, hardware: &HardwareConfig) -> Result<()> {
+    const TUBE_PATH: &str = include_str!("../../configs/paths/tube.toml");
+    std::fs::create_dir_all(out)?;
+    let path_file = out.join("flythrough-tube.toml");
+    std::fs::write(&path_file, TUBE_PATH)?;
+    let spec = "phantom:tube:64";
+    let volume = dataset::load(spec, None)?;
+    let base = RunDescription {
+        size: (128, 128),
+        projection: vizsim::camera::Projection::Persp,
+        ..RunDescription::new(spec, "class", Model::Float, hardware.clone())
+    };
+    let prepared = run::prepare(&base, &volume)?;
+    let start = Instant::now();
+    let step = (frames / 12).max(1);
+    let mut images = Vec::new();
+    for k in (0..frames).step_by(step as usize).take(12) {
+        let desc = RunDescription {
+            view: format!("path:{}:{k}/{frames}", path_file.display()),
+            ..base.clone()
+        };
+        let frame = run::execute(&desc, &prepared, Probes::default())?.frame;
+        images.push((frame, k));
+    }
+    let panels: Vec<_> = images
+        .iter()
+        .map(|(f, k)| {
+            (
+                f,
+                vec![
+                    volume.name.clone(),
+                    format!("fly-through, frame {k}/{frames}"),
+                ],
+            )
+        })
+        .collect();
+    let sheet = out.join("flythrough-tube.png");
+    write_contact_sheet(&panels, 6, &sheet)?;
+    println!(
+        "{}: fly-through along configs/paths/tube.toml, {} frames in {:.2} s -> {}",
+        volume.name,
+        panels.len(),
+        start.elapsed().as_secs_f64(),
+        sheet.display()
+    );
+    Ok(())
 }
 
 /// The quick experiment (configs/experiments/quick.toml, embedded): sweep, tables and charts.

@@ -143,7 +143,8 @@ pub struct FrameArgs {
     /// Transfer function: `zero`, `class` (the dataset's own), a preset name, or a TOML file.
     #[arg(long, default_value = "class")]
     pub tf: String,
-    /// `front` or `orbit:K/N` (frame K of an N-frame orbit about the vertical axis).
+    /// `front`, `orbit:K/N` (frame K of an N-frame orbit about the vertical axis) or
+    /// `path:FILE:K/N` (frame K of N along a camera path file, e.g. configs/paths/tube.toml).
     #[arg(long, default_value = "front")]
     pub view: String,
     #[arg(long, value_enum, default_value = "ortho")]

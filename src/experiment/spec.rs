@@ -67,6 +67,10 @@ pub struct Frames {
     pub size: String,
     #[serde(default = "default_projection")]
     pub projection: String,
+    /// A camera path file (`crate::path`): the views are then `path:FILE:K/N` with N =
+    /// `orbit` frames along the path instead of the orbit. Written out only when given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub path: Option<String>,
 }
 
 fn default_size() -> String {
@@ -504,7 +508,13 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
         }
     }
 
-    let view_of = |frame: u32| format!("orbit:{frame}/{}", frames.orbit);
+    let view_of = |frame: u32| match &frames.path {
+        Some(file) => format!("path:{file}:{frame}/{}", frames.orbit),
+        None => format!("orbit:{frame}/{}", frames.orbit),
+    };
+    if frames.path.is_some() {
+        crate::camera::View::parse(&view_of(0)).map_err(|e| bad("frames.path", e.to_string()))?;
+    }
     let mut runs = Vec::new();
     let mut skipped = Vec::new();
     let mut configs: BTreeMap<String, HardwareConfig> = BTreeMap::new();

@@ -245,6 +245,7 @@ impl<'a> FixedRenderer<'a> {
     /// Fixed-point setup of the ray through pixel (px, py).
     pub fn setup(&self, camera: &Camera, px: u32, py: u32) -> FixedRay {
         let ray = camera.voxel_ray(px, py, self.volume.spacing);
+        let ray = crate::camera::interleave_ray(ray, px, py, &self.settings);
         let fixed = setup_ray(
             &ray,
             self.volume.dims,

@@ -16,6 +16,7 @@ use glam::{Vec3A, Vec4};
 
 use super::{clip_to_box, render_frame, sample_range, Frame, RayRecord, RenderSettings};
 use crate::bricks::FloatRange;
+use crate::camera::interleave_ray;
 use crate::camera::{Camera, Ray};
 use crate::config::{HardwareConfig, LeapRegions};
 use crate::error::Result;
@@ -90,7 +91,9 @@ impl<'a> FloatRenderer<'a> {
 
     pub fn render(&self, camera: &Camera) -> Frame {
         render_frame(camera.width, camera.height, |px, py| {
-            self.cast_pixel(&camera.voxel_ray(px, py, self.volume.spacing), (px, py))
+            let ray = camera.voxel_ray(px, py, self.volume.spacing);
+            let ray = interleave_ray(ray, px, py, &self.settings);
+            self.cast_pixel(&ray, (px, py))
         })
     }
 

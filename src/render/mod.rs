@@ -20,6 +20,14 @@ pub struct RenderSettings {
     pub shading: bool,
     /// Background colour and opacity, composited behind every ray.
     pub background: [f32; 4],
+    /// Interleaved sampling: the N of the N×N pattern of first-sample offsets
+    /// (`camera::interleave_ray`); 1 = off. Written out only when not 1.
+    #[serde(skip_serializing_if = "is_one")]
+    pub interleave: u32,
+}
+
+fn is_one(n: &u32) -> bool {
+    *n == 1
 }
 
 impl Default for RenderSettings {
@@ -29,6 +37,7 @@ impl Default for RenderSettings {
             ert_threshold: Some(0.95),
             shading: false,
             background: [0.0, 0.0, 0.0, 1.0],
+            interleave: 1,
         }
     }
 }
@@ -46,6 +55,13 @@ impl RenderSettings {
             if !(t > 0.0 && t <= 1.0) {
                 return Err(Error::Invalid(format!("ERT threshold {t}: allowed (0, 1]")));
             }
+        }
+        if !(1..=crate::camera::MAX_INTERLEAVE).contains(&self.interleave) {
+            return Err(Error::Invalid(format!(
+                "interleave {}: the pattern is N×N with N in 1..={} (1 = off)",
+                self.interleave,
+                crate::camera::MAX_INTERLEAVE
+            )));
         }
         if self.background.iter().any(|c| !(0.0..=1.0).contains(c)) {
             return Err(Error::Invalid(format!(

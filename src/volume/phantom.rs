@@ -67,16 +67,23 @@ pub enum PhantomKind {
     /// behind it (the iso-surface is value 128). The seed sets the phases of the motion;
     /// t ≤ 1000 (at t < 0 only the image at t is integrated).
     Tsdf,
+    /// Virtual-endoscopy tube: a hollow tube along +y (from face to face) whose centreline
+    /// bends sideways, x = (size−1)·(0.5 + 0.2·sin(π·y/(size−1))), z = (size−1)/2. Within
+    /// each y-slice the wall spans radii 0.14..0.22·(size−1) from the centreline, value 200
+    /// ±10 noise (seeded), with a ~1.5-voxel partial-volume ramp at both surfaces; the lumen
+    /// and the outside are exactly 0. Fly through it with `configs/paths/tube.toml`.
+    Tube,
 }
 
 impl PhantomKind {
-    pub const ALL: [PhantomKind; 6] = [
+    pub const ALL: [PhantomKind; 7] = [
         PhantomKind::Sphere,
         PhantomKind::Shells,
         PhantomKind::Jet,
         PhantomKind::Metaballs,
         PhantomKind::Cast,
         PhantomKind::Tsdf,
+        PhantomKind::Tube,
     ];
 
     /// Name used in specs (`sphere`, `shells`, ...).
@@ -88,6 +95,7 @@ impl PhantomKind {
             PhantomKind::Metaballs => "metaballs",
             PhantomKind::Cast => "cast",
             PhantomKind::Tsdf => "tsdf",
+            PhantomKind::Tube => "tube",
         }
     }
 
@@ -236,6 +244,7 @@ pub fn generate(spec: &PhantomSpec) -> Volume {
         PhantomKind::Metaballs => metaballs(n, spec.seed, spec.time as f64),
         PhantomKind::Cast => cast(n, spec.seed),
         PhantomKind::Tsdf => TsdfFusion::at(n, spec.seed, spec.time as f64).values(),
+        PhantomKind::Tube => tube(n, spec.seed),
     };
     Volume::new(spec.name(), [n; 3], [1.0; 3], 8, data)
         .expect("generated phantoms have valid dims and 8-bit values")
@@ -675,6 +684,31 @@ impl CastPart {
 fn box_distance(p: DVec3, (min, max): (DVec3, DVec3)) -> f64 {
     let q = (p - (min + max) * 0.5).abs() - (max - min) * 0.5;
     q.max(DVec3::ZERO).length() + q.max_element().min(0.0)
+}
+
+/// The tube's centreline x at slice y, and its wall radii, as fractions of size − 1.
+pub const TUBE_BEND: f64 = 0.2;
+pub const TUBE_RADII: (f64, f64) = (0.14, 0.22);
+
+/// Centreline of the tube phantom at y (fractions of size − 1): (x, z).
+pub fn tube_centre(y: f64) -> (f64, f64) {
+    (0.5 + TUBE_BEND * (std::f64::consts::PI * y).sin(), 0.5)
+}
+
+fn tube(n: usize, seed: u64) -> Vec<u16> {
+    let m = (n - 1) as f64;
+    let key = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ 0x7475_6265;
+    fill_voxels(n, |p| {
+        let (cx, cz) = tube_centre(p.y / m);
+        let d = ((p.x - cx * m).powi(2) + (p.z - cz * m).powi(2)).sqrt();
+        let sd = (TUBE_RADII.0 * m - d).max(d - TUBE_RADII.1 * m);
+        let inside = inside_fraction(sd, 1.5);
+        if inside <= 0.0 {
+            return 0;
+        }
+        let noise = 10.0 * value_noise(key, p * 0.5);
+        to_voxel(((200.0 + noise) * inside).max(1.0))
+    })
 }
 
 /// How much of a voxel at signed distance `sd` lies inside: 1 deep inside, 0 outside, a linear

@@ -179,7 +179,7 @@ pub fn assert_leap_matches(
 /// view of `views()`.
 pub fn assert_leaping_is_invisible(volume: &Volume, tf: &TransferFunction, size: u32) {
     for (view, projection) in views() {
-        let cam = camera(volume, view, projection, size);
+        let cam = camera(volume, view.clone(), projection, size);
         for ert in [Some(0.95), None] {
             let settings = RenderSettings {
                 ert_threshold: ert,
