@@ -62,44 +62,9 @@ fn float_256(bencher: divan::Bencher) {
 /// `subcube` 0 = no leaping.
 #[divan::bench(sample_count = 5, args = [0, 8])]
 fn fixed_256(bencher: divan::Bencher, subcube: usize) {
-    use vizsim::config::HardwareConfig;
-    use vizsim::functional::renderer::{FixedRenderer, Leaping};
-    let volume = volume_256();
-    let tf = transfer::resolve("class", &volume.name).unwrap();
-    let settings = RenderSettings {
-        ert_threshold: None,
-        ..Default::default()
-    };
-    let mut config = HardwareConfig::default_config();
+    let mut config = vizsim::config::HardwareConfig::default_config();
     config.occupancy.subcube = subcube;
-    let renderer = FixedRenderer::new(
-        volume,
-        &tf,
-        &settings,
-        &config,
-        Leaping::from_config(&config),
-    )
-    .unwrap();
-    let camera = Camera::for_volume(
-        glam::Vec3::from(volume.extent()),
-        View::Orbit { k: 5, n: 72 },
-        Projection::Ortho,
-        256,
-        256,
-    )
-    .unwrap();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
-    let steps = pool.install(|| renderer.render(&camera)).stats().steps();
-    println!(
-        "fixed_256 (subcube {subcube}): {} on 1 thread, {steps} steps per frame",
-        volume.name
-    );
-    bencher
-        .counter(ItemsCount::new(steps))
-        .bench(|| pool.install(|| renderer.render(&camera)));
+    bench_fixed(bencher, &config, &format!("fixed_256 (subcube {subcube})"));
 }
 
 /// The functional fixed-point model with the leaping structures kept in volume memory, same
@@ -108,13 +73,6 @@ fn fixed_256(bencher: divan::Bencher, subcube: usize) {
 #[divan::bench(sample_count = 5, args = ["leapvalues", "leapvalues-homogeneous", "distance8"])]
 fn fixed_256_in_memory(bencher: divan::Bencher, structure: &str) {
     use vizsim::config::{HardwareConfig, LeapRegions, LeapStructure};
-    use vizsim::functional::renderer::{FixedRenderer, Leaping};
-    let volume = volume_256();
-    let tf = transfer::resolve("class", &volume.name).unwrap();
-    let settings = RenderSettings {
-        ert_threshold: None,
-        ..Default::default()
-    };
     let mut config = HardwareConfig::default_config();
     match structure {
         "distance8" => config.occupancy.structure = LeapStructure::Distance,
@@ -125,14 +83,25 @@ fn fixed_256_in_memory(bencher: divan::Bencher, structure: &str) {
             }
         }
     }
-    let renderer = FixedRenderer::new(
-        volume,
-        &tf,
-        &settings,
+    bench_fixed(
+        bencher,
         &config,
-        Leaping::from_config(&config),
-    )
-    .unwrap();
+        &format!("fixed_256_in_memory ({structure})"),
+    );
+}
+
+/// One thread renders the orbit frame 5/72 of the 256³ volume at 256×256, no ERT, with the
+/// leaping `config` selects; divan counts steps.
+fn bench_fixed(bencher: divan::Bencher, config: &vizsim::config::HardwareConfig, label: &str) {
+    use vizsim::functional::renderer::{FixedRenderer, Leaping};
+    let volume = volume_256();
+    let tf = transfer::resolve("class", &volume.name).unwrap();
+    let settings = RenderSettings {
+        ert_threshold: None,
+        ..Default::default()
+    };
+    let renderer =
+        FixedRenderer::new(volume, &tf, &settings, config, Leaping::from_config(config)).unwrap();
     let camera = Camera::for_volume(
         glam::Vec3::from(volume.extent()),
         View::Orbit { k: 5, n: 72 },
@@ -147,7 +116,7 @@ fn fixed_256_in_memory(bencher: divan::Bencher, structure: &str) {
         .unwrap();
     let steps = pool.install(|| renderer.render(&camera)).stats().steps();
     println!(
-        "fixed_256_in_memory ({structure}): {} on 1 thread, {steps} steps per frame",
+        "{label}: {} on 1 thread, {steps} steps per frame",
         volume.name
     );
     bencher

@@ -542,16 +542,8 @@ impl HardwareConfig {
 
     /// Checks every field against its allowed range.
     pub fn validate(&self, source: &str) -> Result<()> {
-        let range = |field: &str, value: u64, lo: u64, hi: u64| -> Result<()> {
-            if value < lo || value > hi {
-                return Err(Error::config(
-                    source,
-                    field,
-                    format!("{value} is out of range; allowed {lo}..={hi}"),
-                ));
-            }
-            Ok(())
-        };
+        let range =
+            |field: &str, value: u64, lo: u64, hi: u64| check_range(source, field, value, lo, hi);
         let r = &self.ray;
         range("ray.position_int_bits", r.position_int_bits as u64, 2, 16)?;
         range("ray.position_frac_bits", r.position_frac_bits as u64, 1, 24)?;
@@ -735,16 +727,8 @@ impl HardwareConfig {
                 ),
             ));
         }
-        let range = |field: &str, value: u64, lo: u64, hi: u64| -> Result<()> {
-            if value < lo || value > hi {
-                return Err(Error::config(
-                    source,
-                    field,
-                    format!("{value} is out of range; allowed {lo}..={hi}"),
-                ));
-            }
-            Ok(())
-        };
+        let range =
+            |field: &str, value: u64, lo: u64, hi: u64| check_range(source, field, value, lo, hi);
         range(
             "bricks.setup_cycles_per_ray",
             b.setup_cycles_per_ray as u64,
@@ -879,6 +863,18 @@ fn insert_default_sections(table: &mut toml::Table) {
             }
         }
     }
+}
+
+/// An error naming `source` and `field` when `value` is outside `lo..=hi`.
+fn check_range(source: &str, field: &str, value: u64, lo: u64, hi: u64) -> Result<()> {
+    if value < lo || value > hi {
+        return Err(Error::config(
+            source,
+            field,
+            format!("{value} is out of range; allowed {lo}..={hi}"),
+        ));
+    }
+    Ok(())
 }
 
 /// Applies `a.b.c=value` to a TOML table. The value is read as TOML (`8`, `true`, `0.9`,
