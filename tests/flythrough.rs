@@ -25,8 +25,13 @@ fn scratch(name: &str) -> std::path::PathBuf {
     dir.join(name)
 }
 
+/// Writes `text` to a file of its own: tests run in parallel and several write the same
+/// path names, so each call gets a numbered name (a shared name raced: one test read a file
+/// another had just truncated).
 fn write(name: &str, text: &str) -> String {
-    let path = scratch(name);
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let path = scratch(&format!("{n}-{name}"));
     std::fs::write(&path, text).unwrap();
     path.display().to_string()
 }
