@@ -550,23 +550,11 @@ mod tests {
                 "LV-h"
             ]
         );
+        // `modes` is listed in table order: a reversed copy sorts back into it.
         let mut sorted = modes.to_vec();
         sorted.reverse();
         sorted.sort_by_key(|m| sort_key("mode", m));
-        assert_eq!(
-            sorted,
-            [
-                "none",
-                "ert",
-                "ert+leap4",
-                "ert+leap8+hier",
-                "leap8",
-                "ert+distance4",
-                "ert+distance8",
-                "ert+leapvalues",
-                "ert+leapvalues-homogeneous"
-            ]
-        );
+        assert_eq!(sorted, modes);
         assert_eq!(mode_label("ert+octree"), "ert+octree");
     }
 }
