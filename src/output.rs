@@ -1,5 +1,8 @@
 //! Writing result files so that a failure or a kill never leaves a half-written file: write to
-//! a temporary file in the same folder, flush, then rename over the target.
+//! a temporary file in the same folder, flush, then rename over the target. Only regular files
+//! (and new paths) are written that way: a device, a FIFO or a dangling symlink is written
+//! through (a rename would replace the device node with a file and hide a full disk), and a
+//! symlink to a regular file has its target replaced, so the link stays.
 
 use std::io::Write;
 use std::path::Path;
@@ -48,10 +51,75 @@ fn remove_stale_temporaries(dir: &Path, prefix: &str) {
     }
 }
 
+/// How an output path is written.
+enum Target {
+    /// A regular file or a new path (a symlink's target, resolved): temporary + rename.
+    Atomic(std::path::PathBuf),
+    /// A device, a FIFO or a dangling symlink: opened and written in place.
+    Through,
+}
+
+fn target(path: &Path) -> Result<Target> {
+    let meta = match std::fs::symlink_metadata(path) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Ok(Target::Atomic(path.to_path_buf()))
+        }
+        Err(e) => return Err(Error::io(path, e)),
+    };
+    let kind = meta.file_type();
+    if kind.is_file() {
+        Ok(Target::Atomic(path.to_path_buf()))
+    } else if kind.is_dir() {
+        Err(Error::Invalid(format!(
+            "{}: is a folder, not a file",
+            path.display()
+        )))
+    } else if kind.is_symlink() {
+        match std::fs::canonicalize(path) {
+            // The resolved path is no symlink: one more level at most.
+            Ok(real) => target(&real),
+            Err(_) => Ok(Target::Through),
+        }
+    } else {
+        Ok(Target::Through)
+    }
+}
+
+/// Fails early, before a long computation, when `path` cannot be written: a folder, or a
+/// folder that cannot be created or written into (tried with the temporary the write will
+/// use). Devices and FIFOs are not opened here (opening a FIFO waits for its reader).
+pub fn check_writable(path: &Path) -> Result<()> {
+    if let Target::Atomic(real) = target(path)? {
+        let tmp = temporary_path(&real)?;
+        std::fs::File::create(&tmp).map_err(|e| Error::io(path, e))?;
+        let _ = std::fs::remove_file(&tmp);
+    }
+    Ok(())
+}
+
 pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
 ) -> Result<()> {
+    let real = match target(path)? {
+        Target::Atomic(real) => real,
+        Target::Through => {
+            // Errors at the flush (a full disk: /dev/full) are reported, not lost in a drop.
+            let result = (|| {
+                let file = std::fs::OpenOptions::new()
+                    .write(true)
+                    .create(true)
+                    .truncate(true)
+                    .open(path)?;
+                let mut writer = std::io::BufWriter::new(file);
+                write(&mut writer)?;
+                writer.flush()
+            })();
+            return result.map_err(|e| Error::io(path, e));
+        }
+    };
+    let path = real.as_path();
     let tmp = temporary_path(path)?;
     let result = (|| {
         let file = std::fs::File::create(&tmp)?;
@@ -83,17 +151,29 @@ pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<()> {
 /// temporary. Errors name the target path.
 pub struct PendingFile {
     path: std::path::PathBuf,
-    tmp: std::path::PathBuf,
+    /// The temporary renamed to `path` on commit; None when `path` is written through.
+    tmp: Option<std::path::PathBuf>,
     writer: std::io::BufWriter<std::fs::File>,
     committed: bool,
 }
 
 impl PendingFile {
     pub fn create(path: &Path) -> Result<PendingFile> {
-        let tmp = temporary_path(path)?;
-        let file = std::fs::File::create(&tmp).map_err(|e| Error::io(path, e))?;
+        let (real, tmp) = match target(path)? {
+            Target::Atomic(real) => {
+                let tmp = temporary_path(&real)?;
+                (real, Some(tmp))
+            }
+            Target::Through => (path.to_path_buf(), None),
+        };
+        let file = std::fs::OpenOptions::new()
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(tmp.as_ref().unwrap_or(&real))
+            .map_err(|e| Error::io(path, e))?;
         Ok(PendingFile {
-            path: path.to_path_buf(),
+            path: real,
             tmp,
             writer: std::io::BufWriter::with_capacity(1 << 18, file),
             committed: false,
@@ -115,8 +195,13 @@ impl PendingFile {
         }
         let result = (|| {
             self.writer.flush()?;
-            self.writer.get_ref().sync_all()?;
-            std::fs::rename(&self.tmp, &self.path)
+            match &self.tmp {
+                Some(tmp) => {
+                    self.writer.get_ref().sync_all()?;
+                    std::fs::rename(tmp, &self.path)
+                }
+                None => Ok(()),
+            }
         })();
         result.map_err(|e| Error::io(&self.path, e))?;
         self.committed = true;
@@ -146,8 +231,8 @@ impl Write for PendingFile {
 
 impl Drop for PendingFile {
     fn drop(&mut self) {
-        if !self.committed {
-            let _ = std::fs::remove_file(&self.tmp);
+        if let (false, Some(tmp)) = (self.committed, &self.tmp) {
+            let _ = std::fs::remove_file(tmp);
         }
     }
 }

@@ -176,3 +176,116 @@ fn stale_temporaries_of_a_killed_write_are_cleaned_on_the_next_write() {
     running.kill().unwrap();
     running.wait().unwrap();
 }
+
+/// A dataset with no preset transfer function fails the sweep's validation, dry run or not,
+/// before anything is written (issue 17, item 7: the real run used to fail after writing the
+/// lock, the resolved experiment and empty result files).
+#[test]
+fn a_dataset_without_a_transfer_function_fails_before_the_sweep_writes() {
+    let dir = scratch("no-tf");
+    let data = dir.join("data");
+    std::fs::create_dir_all(&data).unwrap();
+    std::fs::write(data.join("blob_8x8x8_uint8.raw"), vec![7u8; 512]).unwrap();
+    let experiment = dir.join("e.toml");
+    std::fs::write(
+        &experiment,
+        "name = \"e\"\ndatasets = [\"blob\"]\ntf = [\"class\"]\nmodes = [\"none\"]\n\
+         models = [\"step\"]\n[frames]\norbit = 1\n",
+    )
+    .unwrap();
+    let out = dir.join("out");
+    for dry in [true, false] {
+        let mut args = vec![
+            "sweep",
+            experiment.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--data-dir",
+            data.to_str().unwrap(),
+        ];
+        if dry {
+            args.push("--dry-run");
+        }
+        assert_refused(&args, &["tf", "`class` for dataset `blob`", "blob-class"]);
+        assert!(
+            !out.exists(),
+            "dry run {dry}: the output folder was created"
+        );
+    }
+}
+
+/// Outputs that are not regular files are written through, not replaced by a renamed
+/// temporary: a symlink stays a symlink (its target gets the image), a full device reports
+/// the full disk (issue 17, item 5).
+#[test]
+fn symlinks_and_devices_as_outputs_are_written_through() {
+    let dir = scratch("outputs");
+    let real = dir.join("real.png");
+    let link = dir.join("link.png");
+    std::os::unix::fs::symlink(&real, &link).unwrap();
+    let render = |out: &std::path::Path| {
+        run_bounded(&[
+            "render",
+            "--dataset",
+            "phantom:sphere:16",
+            "--size",
+            "8x8",
+            "-o",
+            out.to_str().unwrap(),
+        ])
+    };
+    let (ok, stderr) = render(&link);
+    assert!(ok, "{stderr}");
+    let meta = std::fs::symlink_metadata(&link).unwrap();
+    assert!(meta.file_type().is_symlink(), "the link was replaced");
+    let png = std::fs::read(&real).unwrap();
+    assert_eq!(&png[1..4], b"PNG", "the link's target holds the image");
+    let full = std::path::Path::new("/dev/full");
+    if full.exists() {
+        let (ok, stderr) = render(full);
+        assert!(!ok, "writing to /dev/full succeeded");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+        assert!(stderr.contains("/dev/full"), "{stderr}");
+        use std::os::unix::fs::FileTypeExt;
+        let kind = std::fs::symlink_metadata(full).unwrap().file_type();
+        assert!(kind.is_char_device(), "/dev/full was replaced");
+    } else {
+        eprintln!("skipped the /dev/full part: no /dev/full here");
+    }
+}
+
+/// `sim` checks its output paths before simulating: an unwritable `--json` fails at once, with
+/// no frame simulated and no image written (issue 17, item 12).
+#[test]
+fn sim_checks_its_outputs_before_simulating() {
+    let dir = scratch("sim-outputs");
+    let not_a_folder = dir.join("file");
+    std::fs::write(&not_a_folder, b"x").unwrap();
+    let json = not_a_folder.join("report.json");
+    let image = dir.join("frame.png");
+    let output = Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args([
+            "sim",
+            "--dataset",
+            "phantom:sphere:32",
+            "--size",
+            "16x16",
+            "-o",
+            image.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success());
+    assert!(
+        stderr.contains("report.json") || stderr.contains("file"),
+        "{stderr}"
+    );
+    assert!(
+        !String::from_utf8_lossy(&output.stdout).contains("cycles"),
+        "the frame was simulated first"
+    );
+    assert!(!image.exists());
+}

@@ -391,3 +391,58 @@ fn repeated_runs_are_listed_once_and_said_so() {
     ]);
     assert!(String::from_utf8_lossy(&out.stdout).contains("listed more than once"));
 }
+
+/// A folder holding one experiment's results refuses another experiment (its keys would mix
+/// into the first one's tables), dry run or not, and keeps its results; the same experiment
+/// resumes there (issue 17, item 12).
+#[test]
+fn another_experiment_into_a_used_folder_is_refused() {
+    let dir = temp_dir("other-experiment");
+    let small = |name: &str| {
+        format!(
+            "name = \"{name}\"\ndatasets = [\"phantom:sphere:16\"]\ntf = [\"zero\"]\n\
+             modes = [\"none\"]\nmodels = [\"step\"]\n[frames]\norbit = 1\nsize = \"8x8\"\n"
+        )
+    };
+    let first = dir.join("first.toml");
+    let second = dir.join("second.toml");
+    std::fs::write(&first, small("first")).unwrap();
+    std::fs::write(&second, small("second")).unwrap();
+    let out = dir.join("out");
+    let out_arg = out.to_str().unwrap();
+    let ok = vizsim(&[
+        "sweep",
+        first.to_str().unwrap(),
+        "--out",
+        out_arg,
+        "--quiet",
+    ]);
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    let results = sorted_lines(&out.join("results.jsonl"));
+    assert_eq!(results.len(), 1);
+    for extra in [&["--dry-run"][..], &["--quiet"][..]] {
+        let mut args = vec!["sweep", second.to_str().unwrap(), "--out", out_arg];
+        args.extend_from_slice(extra);
+        let refused = vizsim(&args);
+        let stderr = String::from_utf8_lossy(&refused.stderr);
+        assert!(!refused.status.success(), "{extra:?}: accepted");
+        assert!(
+            stderr.contains("experiment `first`, not `second`"),
+            "{extra:?}: {stderr}"
+        );
+    }
+    assert_eq!(sorted_lines(&out.join("results.jsonl")), results);
+    let again = vizsim(&[
+        "sweep",
+        first.to_str().unwrap(),
+        "--out",
+        out_arg,
+        "--quiet",
+    ]);
+    assert!(again.status.success());
+    assert_eq!(sorted_lines(&out.join("results.jsonl")), results);
+}

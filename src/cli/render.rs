@@ -47,6 +47,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
         "--subcube, --hierarchy and --occupancy apply to --model fixed (the float reference takes every sample)"
     );
     let desc = args.frame.describe(model, &args.hardware)?;
+    // Output paths are checked before the render, not after it.
+    for path in [Some(&args.output), args.rays.as_ref(), args.json.as_ref()]
+        .into_iter()
+        .flatten()
+    {
+        vizsim::output::check_writable(path)?;
+    }
     println!("{}", args.hardware.resolved_line(&desc.hardware));
     let report = run::run(&desc, args.frame.data.dir()?.as_deref(), Probes::default())?;
     report.frame.write_png(&args.output)?;

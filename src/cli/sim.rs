@@ -57,6 +57,10 @@ pub fn run(args: SimArgs) -> Result<()> {
         },
     };
     desc.validate()?;
+    // Output paths are checked before the simulation, not after it.
+    for path in [&args.output, &args.json].into_iter().flatten() {
+        vizsim::output::check_writable(path)?;
+    }
     let config = &desc.hardware;
     println!("{}", args.hardware.resolved_line(config));
     use vizsim::arch::command_trace::CommandTrace;

@@ -56,6 +56,7 @@ pub fn run(args: SweepArgs) -> Result<()> {
         .iter()
         .filter(|r| shard.is_none_or(|s| s.contains(r)))
         .collect();
+    experiment::store::ResultStore::check_same_experiment(out, &expansion.experiment.name)?;
     let done = experiment::store::read_lines(&out.join(experiment::store::RESULTS))?
         .into_iter()
         .filter_map(|(v, _)| v.get("key").and_then(|k| k.as_str()).map(str::to_string))

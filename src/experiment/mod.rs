@@ -102,6 +102,7 @@ pub fn sweep(
     progress: bool,
 ) -> Result<SweepSummary> {
     let start = Instant::now();
+    ResultStore::check_same_experiment(out, &expansion.experiment.name)?;
     let mine: Vec<&RunSpec> = expansion
         .runs
         .iter()

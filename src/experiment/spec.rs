@@ -507,6 +507,14 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
             volumes.insert(name.clone(), Arc::new(volume));
         }
     }
+    // Every dataset needs its transfer functions (a dataset outside the protocol has no
+    // preset): checked here so that a sweep fails before it writes anything.
+    for (name, volume) in &volumes {
+        for tf in &experiment.tf {
+            crate::transfer::resolve(tf, &volume.name)
+                .map_err(|e| bad("tf", format!("`{tf}` for dataset `{name}`: {e}")))?;
+        }
+    }
 
     let view_of = |frame: u32| match &frames.path {
         Some(file) => format!("path:{file}:{frame}/{}", frames.orbit),

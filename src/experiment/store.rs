@@ -231,6 +231,26 @@ impl ResultStore {
         Ok(())
     }
 
+    /// Refuses a folder that holds another experiment's results (by name): its run keys would
+    /// mix into this one's tables. A folder without a resolved experiment is taken as new.
+    pub fn check_same_experiment(dir: &Path, name: &str) -> Result<()> {
+        let path = dir.join(RESOLVED);
+        let Ok(text) = std::fs::read_to_string(&path) else {
+            return Ok(());
+        };
+        let existing = serde_json::from_str::<Value>(&text)
+            .ok()
+            .and_then(|v| v["experiment"]["name"].as_str().map(str::to_string));
+        match existing {
+            Some(other) if other != name => Err(Error::Invalid(format!(
+                "{}: the folder holds results of experiment `{other}`, not `{name}`; sweep into \
+                 another folder (or remove this one)",
+                dir.display()
+            ))),
+            _ => Ok(()),
+        }
+    }
+
     /// The experiment as resolved (its file, base configuration and every run's parameters),
     /// written before any run.
     pub fn write_resolved(&self, expansion: &Expansion, shard: Option<Shard>) -> Result<()> {
