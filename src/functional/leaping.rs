@@ -262,6 +262,9 @@ impl SpaceSkipper for DistanceLeaping<'_> {
 ///   back to T, processing this sample there.
 pub struct LeapValueLeaping<'a> {
     volume: &'a LeapValueVolume,
+    /// The words' density fields (homogeneous leaping's density volume); None for empty-region
+    /// leaping, which never reads them.
+    densities: Option<&'a [u16]>,
     pos_frac_bits: u32,
 }
 
@@ -269,41 +272,50 @@ impl<'a> LeapValueLeaping<'a> {
     pub fn new(volume: &'a LeapValueVolume, pos_frac_bits: u32) -> Self {
         LeapValueLeaping {
             volume,
+            densities: volume.densities.as_ref().map(|v| &v.data[..]),
             pos_frac_bits,
         }
     }
 
-    /// The word of the voxel nearest to `pos` (round half up, clamped into the volume): one of
-    /// the eight words the sample reads.
+    /// The index of the voxel nearest to `pos` (round half up, clamped into the volume): one
+    /// of the eight words the sample reads.
     #[inline(always)]
-    fn nearest_word(&self, pos: [i64; 3]) -> u32 {
+    fn nearest(&self, pos: [i64; 3]) -> usize {
         let (pf, d) = (self.pos_frac_bits, self.volume.dims);
         let half = 1i64 << (pf - 1);
         let v = [0, 1, 2].map(|a| (((pos[a] + half) >> pf).max(0) as usize).min(d[a] - 1));
-        self.volume.words[self.volume.index(v)]
+        self.volume.index(v)
+    }
+
+    /// The density field of word `i`.
+    #[inline(always)]
+    fn density(&self, i: usize) -> u16 {
+        match self.densities {
+            Some(d) => d[i],
+            None => self.volume.layout.decode(self.volume.words[i]).density,
+        }
     }
 
     /// Trilinear mode T: the interpolated sample, and whether the ray enters region mode.
     #[inline(always)]
-    fn trilinear(&self, pos: [i64; 3], state: &mut SkipState) -> Step {
-        let layout = &self.volume.layout;
-        let nearest = layout.decode(self.nearest_word(pos));
-        state.region = if nearest.leap.is_some() {
-            Some(nearest.density)
+    fn trilinear(&self, pos: [i64; 3], nearest: usize, state: &mut SkipState) -> Step {
+        let density = self.density(nearest);
+        state.region = if self.volume.leap(nearest).is_some() {
+            Some(density)
         } else {
+            // The cell's eight words are identical when all are unflagged with one density
+            // (`nearest` is one of them).
             let (pf, d) = (self.pos_frac_bits, self.volume.dims);
             let base = [0, 1, 2].map(|a| ((pos[a] >> pf) as usize).min(d[a] - 2));
-            let first = self.volume.words[self.volume.index(base)];
             let same = (0..8).all(|c| {
-                let v = [
+                let i = self.volume.index([
                     base[0] + (c & 1),
                     base[1] + ((c >> 1) & 1),
                     base[2] + (c >> 2),
-                ];
-                self.volume.words[self.volume.index(v)] == first
+                ]);
+                self.volume.leap(i).is_none() && self.density(i) == density
             });
-            // `nearest` is one of the eight: identical words are all unflagged.
-            same.then_some(nearest.density)
+            same.then_some(density)
         };
         Step::SAMPLE
     }
@@ -312,26 +324,27 @@ impl<'a> LeapValueLeaping<'a> {
 impl SpaceSkipper for LeapValueLeaping<'_> {
     #[inline(always)]
     fn decide(&self, pos: [i64; 3], _: &FixedRay, state: &mut SkipState) -> Step {
-        let word = self.volume.layout.decode(self.nearest_word(pos));
+        let nearest = self.nearest(pos);
         match self.volume.regions {
             LeapRegions::Empty => Step {
-                advance: word.leap.unwrap_or(1).max(1) as u64,
+                advance: self.volume.leap(nearest).unwrap_or(1).max(1) as u64,
                 waits_for_words: true,
                 ..Step::SAMPLE
             },
             LeapRegions::Homogeneous => {
                 let Some(m) = state.region else {
-                    return self.trilinear(pos, state);
+                    return self.trilinear(pos, nearest, state);
                 };
-                let (density, steps) = match word.leap {
-                    Some(l) => (word.density, l.max(1)),
-                    None if word.density == m => (m, 1),
+                let density = self.density(nearest);
+                let steps = match self.volume.leap(nearest) {
+                    Some(l) => l.max(1),
+                    None if density == m => 1,
                     None => {
                         // Rule (c): this sample is processed in T; the step was issued in M,
                         // so it still waited for its words.
                         return Step {
                             waits_for_words: true,
-                            ..self.trilinear(pos, state)
+                            ..self.trilinear(pos, nearest, state)
                         };
                     }
                 };

@@ -18,6 +18,10 @@ pub struct LeapValueVolume {
     pub dims: [usize; 3],
     /// One word per voxel, x fastest.
     pub words: Vec<u32>,
+    /// The words' flag and leap fields as the ray loop reads them, one byte per voxel (see
+    /// `leap_code`): a quarter of the words' footprint, so that the volume and its leap fields
+    /// stay in the host's cache (the ray loop's speed is bound by cache misses).
+    pub leap_codes: Vec<u8>,
     /// Homogeneous leaping: the density fields (region voxels hold their region's mean), the
     /// volume the renderer interpolates. None for empty-region leaping (densities unchanged).
     pub densities: Option<Volume>,
@@ -131,12 +135,17 @@ impl LeapValueVolume {
                 sum += l as u64;
             }
         }
+        let leap_codes = words
+            .iter()
+            .map(|&w| leap_code(layout.decode(w).leap))
+            .collect();
         let elapsed = started.elapsed();
         Ok(LeapValueVolume {
             regions: config.regions,
             layout,
             dims: volume.dims,
             words,
+            leap_codes,
             densities,
             stats: LeapValueStats {
                 range,
@@ -150,10 +159,75 @@ impl LeapValueVolume {
         })
     }
 
+    /// The leap field of voxel `index`: None when its word is not flagged, else its leap value.
+    #[inline(always)]
+    pub fn leap(&self, index: usize) -> Option<u32> {
+        match self.leap_codes[index] {
+            UNFLAGGED => None,
+            LONG_LEAP => self.layout.decode(self.words[index]).leap,
+            code => Some(code as u32 - 1),
+        }
+    }
+
     /// The index of the voxel nearest to a position given per axis in voxels (already
     /// rounded), x fastest.
     #[inline(always)]
     pub fn index(&self, voxel: [usize; 3]) -> usize {
         voxel[0] + self.dims[0] * (voxel[1] + self.dims[1] * voxel[2])
+    }
+}
+
+/// `leap_codes` entry of an unflagged word.
+const UNFLAGGED: u8 = 0;
+/// `leap_codes` entry of a flagged word whose leap value does not fit a byte (read the word).
+const LONG_LEAP: u8 = u8::MAX;
+
+/// A word's leap field as one byte: 0 unflagged, L + 1 for L < 254, else `LONG_LEAP`.
+fn leap_code(leap: Option<u32>) -> u8 {
+    match leap {
+        None => UNFLAGGED,
+        Some(l) if l + 1 < LONG_LEAP as u32 => (l + 1) as u8,
+        Some(_) => LONG_LEAP,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `leap` reads back every leap value a word can hold, through the byte codes and through
+    /// the word for the long ones.
+    #[test]
+    fn leap_codes_give_back_every_leap_value() {
+        let layout = VolumeWord::new(32, 16, 15).unwrap();
+        let leaps = [
+            None,
+            Some(0),
+            Some(1),
+            Some(252),
+            Some(253),
+            Some(254),
+            Some(32767),
+        ];
+        let words: Vec<u32> = leaps
+            .iter()
+            .map(|&l| layout.encode(7, l).unwrap())
+            .collect();
+        let volume = LeapValueVolume {
+            regions: LeapRegions::Empty,
+            layout,
+            dims: [leaps.len(), 1, 1],
+            leap_codes: words
+                .iter()
+                .map(|&w| leap_code(layout.decode(w).leap))
+                .collect(),
+            words,
+            densities: None,
+            stats: LeapValueStats::default(),
+        };
+        for (i, &l) in leaps.iter().enumerate() {
+            assert_eq!(volume.leap(i), l, "voxel {i}");
+        }
+        assert_eq!(volume.leap_codes[5], LONG_LEAP);
     }
 }
