@@ -603,11 +603,12 @@ impl HardwareConfig {
             1 << 40,
         )?;
         let f = self.clock.frequency_mhz;
-        if !(f.is_finite() && f > 0.0 && f <= 1e5) {
+        // A lower bound, not just > 0: a denormal clock gives an infinite frame time.
+        if !(f.is_finite() && (1e-3..=1e5).contains(&f)) {
             return Err(Error::config(
                 source,
                 "clock.frequency_mhz",
-                format!("{f} is out of range; allowed (0, 100000] MHz"),
+                format!("{f} is out of range; allowed 0.001..=100000 MHz"),
             ));
         }
         self.memory.validate(source)?;
@@ -704,11 +705,11 @@ impl HardwareConfig {
             ));
         }
         let step = self.clock.step_time_ns;
-        if !(step.is_finite() && step > 0.0 && step <= 1e6) {
+        if !(step.is_finite() && (1e-3..=1e6).contains(&step)) {
             return Err(Error::config(
                 source,
                 "clock.step_time_ns",
-                format!("{step} is out of range; allowed (0, 1e6] ns"),
+                format!("{step} is out of range; allowed 0.001..=1e6 ns"),
             ));
         }
         self.validate_ray_range(source)
@@ -749,11 +750,11 @@ impl HardwareConfig {
         )?;
         range("bricks.setup_units", b.setup_units as u64, 1, 64)?;
         let bw = b.table_bytes_per_cycle;
-        if !(bw.is_finite() && bw > 0.0 && bw <= 1e6) {
+        if !(bw.is_finite() && (1e-3..=1e6).contains(&bw)) {
             return Err(Error::config(
                 source,
                 "bricks.table_bytes_per_cycle",
-                format!("{bw} is out of range; allowed (0, 1e6]"),
+                format!("{bw} is out of range; allowed 0.001..=1e6"),
             ));
         }
         let finite = |field: String, v: &[f32]| -> Result<()> {

@@ -58,6 +58,19 @@ fn out_of_range_values_name_field_and_range() {
     .unwrap_err()
     .to_string();
     assert!(err.contains("compositing.ert_threshold"), "{err}");
+    // A denormal clock or step time would make the frame time zero and the frame rate
+    // infinite (written as `"fps": null`): both have a lower bound (issue 17, item 12).
+    for (field, value) in [
+        ("clock.step_time_ns", "5e-324"),
+        ("clock.frequency_mhz", "5e-324"),
+        ("memory.host_link_mhz", "1e-300"),
+        ("bricks.table_bytes_per_cycle", "1e-300"),
+    ] {
+        let err = load(vizsim::config::DEFAULT_TOML, &[&format!("{field}={value}")])
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(field) && err.contains("0.001..="), "{err}");
+    }
 }
 
 #[test]

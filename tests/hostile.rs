@@ -289,3 +289,19 @@ fn sim_checks_its_outputs_before_simulating() {
     );
     assert!(!image.exists());
 }
+
+/// A data folder that links to itself or holds a link to itself lists each dataset once,
+/// under its own name (issue 17, item 12: it was listed three times under changed names).
+#[test]
+fn a_symlink_loop_in_the_data_folder_lists_each_dataset_once() {
+    let dir = scratch("data-loop");
+    std::fs::write(dir.join("blob_8x8x8_uint8.raw"), vec![1u8; 512]).unwrap();
+    std::os::unix::fs::symlink(".", dir.join("loop")).unwrap();
+    std::os::unix::fs::symlink(&dir, dir.join("absolute")).unwrap();
+    let names: Vec<String> = vizsim::volume::dataset::scan(&dir)
+        .unwrap()
+        .into_iter()
+        .map(|e| e.name)
+        .collect();
+    assert_eq!(names, ["blob"]);
+}

@@ -545,7 +545,20 @@ fn nrrd_detached_header() {
                   data file: payload/missing.raw\n";
     let path = dir.write("brain3.nhdr", header.as_bytes());
     let message = error_text(nrrd::load_nrrd(&path));
-    assert!(message.contains("missing.raw"), "{message}");
+    // Both files named: the header says which volume (issue 17, item 12).
+    assert!(
+        message.contains("missing.raw") && message.contains("brain3.nhdr"),
+        "{message}"
+    );
+    dir.write("payload/short.raw", &[0u8; 5]);
+    let header = "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 4 2 3\nencoding: raw\n\
+                  data file: payload/short.raw\n";
+    let path = dir.write("brain5.nhdr", header.as_bytes());
+    let message = error_text(nrrd::load_nrrd(&path));
+    assert!(
+        message.contains("short.raw") && message.contains("brain5.nhdr"),
+        "{message}"
+    );
 
     let header = "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 4 2 3\nencoding: raw\n";
     let path = dir.write("brain4.nhdr", header.as_bytes());
@@ -610,6 +623,13 @@ fn nrrd_other_header_errors() {
         (&["sizes: 2 2 2", "byte skip: 4"], "byte skip"),
         (&["sizes: 2 2 2", "line skip: 1"], "line skip"),
         (&["sizes: 2 2 2", "spacings: 1 0 1"], "spacings"),
+        // Bounded: 3e38 made the camera NaN, 1e-38 rendered nothing (issue 17, item 12).
+        (&["sizes: 2 2 2", "spacings: 3e38 1 1"], "out of range"),
+        (&["sizes: 2 2 2", "spacings: 1e-38 1 1"], "out of range"),
+        (
+            &["sizes: 2 2 2", "spacings: 1 1 5000"],
+            "differ by more than",
+        ),
         (
             &["sizes: 2 2 2", "space directions: (1,0,0) (0,0,0) none"],
             "non-zero",

@@ -183,11 +183,11 @@ impl MemoryConfig {
             );
         }
         let mhz = self.host_link_mhz;
-        if !(mhz.is_finite() && mhz > 0.0 && mhz <= 1e5) {
+        if !(mhz.is_finite() && (1e-3..=1e5).contains(&mhz)) {
             return err(
                 "memory.host_link_mhz",
                 format!(
-                    "{mhz} is out of range; allowed (0, 100000] MHz (a host link of zero \
+                    "{mhz} is out of range; allowed 0.001..=100000 MHz (a host link of zero \
                      bandwidth could never deliver an update)"
                 ),
             );

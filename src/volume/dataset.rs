@@ -72,7 +72,14 @@ pub fn scan(dir: &Path) -> Result<Vec<DatasetEntry>> {
             folders.push((entry.path(), lossy));
         }
     }
+    // A folder reached twice (a symlink to the data directory or to a sibling) is scanned
+    // once, else its datasets would be listed twice under disambiguated names.
+    let mut seen = std::collections::HashSet::new();
     for (folder, lossy) in folders {
+        let real = std::fs::canonicalize(&folder).unwrap_or_else(|_| folder.clone());
+        if !seen.insert(real) {
+            continue;
+        }
         let Ok(entries) = std::fs::read_dir(&folder) else {
             continue;
         };

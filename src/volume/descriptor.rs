@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 /// file = "boston_teapot_256x256x178_uint8.raw"   # relative to the descriptor's folder
 /// dims = [256, 256, 178]               # raw only; default: from the file name
 /// type = "uint8"                       # raw only; "uint8" | "uint16"
-/// spacing = [1.0, 1.0, 1.0]            # each finite > 0
+/// spacing = [1.0, 1.0, 1.0]            # each 1e-6..=1e6, axes within 1000× of each other
 /// endian = "little"                    # raw uint16 only; "little" | "big"
 /// ```
 /// For `.nrrd` / `.nhdr` files the header gives dims, type and byte order; `name` and
@@ -52,12 +52,7 @@ pub fn load_descriptor(path: &Path) -> Result<Volume> {
             .unwrap_or_default(),
     };
     if let Some(spacing) = desc.spacing {
-        if spacing.iter().any(|s| !s.is_finite() || *s <= 0.0) {
-            return Err(config(
-                "spacing",
-                format!("{spacing:?} out of range; allowed: finite values > 0"),
-            ));
-        }
+        super::check_spacing(&spacing).map_err(|m| config("spacing", m))?;
     }
     if desc.file.trim().is_empty() {
         return Err(config("file", "must not be empty".into()));

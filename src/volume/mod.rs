@@ -64,11 +64,7 @@ impl Volume {
                 "volume `{name}`: {bits} bits per voxel; allowed: 8 or 16"
             )));
         }
-        if spacing.iter().any(|s| !s.is_finite() || *s <= 0.0) {
-            return Err(Error::Invalid(format!(
-                "volume `{name}`: spacing {spacing:?} must be finite and > 0"
-            )));
-        }
+        check_spacing(&spacing).map_err(|m| Error::Invalid(format!("volume `{name}`: {m}")))?;
         let expected = dims[0] * dims[1] * dims[2];
         if data.len() != expected {
             return Err(Error::Invalid(format!(
@@ -146,6 +142,37 @@ impl Volume {
             histogram16,
         }
     }
+}
+
+/// Per-axis voxel spacing bounds: the camera frames the volume's extent, so a huge spacing
+/// makes it infinite (NaN camera) and a tiny one, or a huge ratio between axes, flattens it
+/// to nothing.
+pub const SPACING_RANGE: std::ops::RangeInclusive<f32> = 1e-6..=1e6;
+/// The largest ratio between two axes' spacings.
+pub const SPACING_MAX_RATIO: f32 = 1e3;
+
+/// Spacing must be finite, within `SPACING_RANGE` on each axis and at most
+/// `SPACING_MAX_RATIO` between axes.
+pub fn check_spacing(spacing: &[f32; 3]) -> std::result::Result<(), String> {
+    if spacing
+        .iter()
+        .any(|s| !s.is_finite() || !SPACING_RANGE.contains(s))
+    {
+        return Err(format!(
+            "spacing {spacing:?} is out of range; allowed {:e}..={:e} per axis",
+            SPACING_RANGE.start(),
+            SPACING_RANGE.end()
+        ));
+    }
+    let (lo, hi) = spacing
+        .iter()
+        .fold((f32::MAX, 0f32), |(lo, hi), &s| (lo.min(s), hi.max(s)));
+    if hi / lo > SPACING_MAX_RATIO {
+        return Err(format!(
+            "spacing {spacing:?}: the axes differ by more than {SPACING_MAX_RATIO}×"
+        ));
+    }
+    Ok(())
 }
 
 /// Dims must be at least 2 per axis (trilinear needs two voxels) and within the guards.

@@ -32,9 +32,13 @@ pub fn load_nrrd(path: &Path) -> Result<Volume> {
     let data = match header.fields.get("data file") {
         Some(data_file) => {
             let data_path = path.parent().unwrap_or(Path::new("")).join(data_file);
-            let data = crate::input::open_regular(&data_path)?;
-            let available = data.metadata().map_err(|e| Error::io(&data_path, e))?.len();
-            read_payload(data, &data_path, available, &layout)?
+            // Errors name the header too: the data file alone does not say which volume.
+            (|| {
+                let data = crate::input::open_regular(&data_path)?;
+                let available = data.metadata().map_err(|e| Error::io(&data_path, e))?.len();
+                read_payload(data, &data_path, available, &layout)
+            })()
+            .map_err(|e| Error::format(path, format!("`data file: {data_file}`: {e}")))?
         }
         None if header.ended_by_blank_line => {
             let available = file_len.saturating_sub(header.length);
@@ -246,6 +250,7 @@ impl Layout {
                 .or(given(from_directions))
                 .unwrap_or(1.0)
         });
+        super::check_spacing(&spacing).map_err(|m| format!("spacings / space directions: {m}"))?;
         Ok(Layout {
             dims,
             bits,
