@@ -305,8 +305,34 @@ fn same_input_same_cycles() {
     assert_eq!(a.frame.pixels, b.frame.pixels);
 }
 
+/// A memory that accepts requests and keeps "working" (an event every 10 cycles, as refresh
+/// would) but never returns a word: a livelock only the watchdog can stop.
+struct StuckMemory;
+
+impl vizsim::arch::voxel_memory::VoxelMemory for StuckMemory {
+    fn try_push(&mut self, _: vizsim::arch::voxel_memory::SampleRequest, _: u64) -> bool {
+        true
+    }
+    fn try_push_word(&mut self, _: u64, _: [usize; 3], _: u64) -> bool {
+        true
+    }
+    fn step(&mut self, _: u64, _: &mut Vec<u64>) {}
+    fn is_idle(&self) -> bool {
+        false
+    }
+    fn next_event(&self, now: u64) -> Option<u64> {
+        Some(now + 10)
+    }
+    fn stats_json(&self) -> serde_json::Value {
+        serde_json::json!({ "model": "stuck" })
+    }
+    fn longest_legal_wait(&self) -> u64 {
+        50
+    }
+}
+
 #[test]
-fn watchdog_stops_a_run_that_makes_no_progress_with_a_dump() {
+fn watchdog_stops_a_run_that_makes_no_progress_with_a_readable_dump() {
     let volume = common::ball(24);
     let tf = ball_tf();
     let mut config = config();
@@ -320,13 +346,11 @@ fn watchdog_stops_a_run_that_makes_no_progress_with_a_dump() {
         Leaping::None,
     )
     .unwrap();
-    // A memory that answers only after 1000 cycles: nothing moves for longer than the watchdog.
-    let mut memory = IdealMemory::new(1000);
     let err = simulate(
         &renderer,
         &cam,
         &renderer.skipper(),
-        &mut memory,
+        &mut StuckMemory,
         &config,
         true,
         None,
@@ -338,8 +362,12 @@ fn watchdog_stops_a_run_that_makes_no_progress_with_a_dump() {
         err.contains("watchdog") && err.contains("ray queue") && err.contains("compositing buffer"),
         "{err}"
     );
-    // With a patient watchdog the same run completes.
-    config.compositing.watchdog_cycles = 10_000;
+    // Readable: a few short lines (it was one 45 KB line), the ray queue cut after 8 rays.
+    assert!(err.lines().count() <= 16, "{err}");
+    assert!(err.lines().all(|l| l.len() <= 200), "{err}");
+    assert!(err.contains("... and"), "{err}");
+    // A memory that answers only after 1000 cycles waits legally: the watchdog allows the
+    // memory's longest legal wait on top of its setting (issue 17, item 10).
     let mut memory = IdealMemory::new(1000);
     assert!(simulate(
         &renderer,
@@ -351,4 +379,40 @@ fn watchdog_stops_a_run_that_makes_no_progress_with_a_dump() {
         None
     )
     .is_ok());
+}
+
+/// The adversarial trial's case (issue 17, item 10): the slowest legal SDRAM timings with the
+/// smallest watchdog stopped `sim --dataset phantom:sphere:32 --size 32x32` at cycle 1691 as a
+/// "pipeline deadlock"; now the run finishes with the cycles of a patient watchdog.
+#[test]
+fn slowest_legal_sdram_timings_never_trip_the_smallest_watchdog() {
+    use vizsim::run::{run, Model, Probes, RunDescription};
+    let mut config = HardwareConfig::default_config();
+    let t = &mut config.sdram;
+    (t.cl, t.t_rtw) = (62, 64);
+    for v in [
+        &mut t.t_rcd,
+        &mut t.t_rp,
+        &mut t.t_ras,
+        &mut t.t_rc,
+        &mut t.t_rrd,
+        &mut t.t_ccd,
+        &mut t.t_rfc,
+        &mut t.t_wr,
+    ] {
+        *v = 64;
+    }
+    let cycles = |watchdog: u64| {
+        let mut hardware = config.clone();
+        hardware.compositing.watchdog_cycles = watchdog;
+        let mut desc = RunDescription::new("phantom:sphere:32", "class", Model::Cycle, hardware);
+        desc.size = (32, 32);
+        let report = run(&desc, None, Probes::default());
+        report.map(|r| r.measurements.cycles)
+    };
+    let patient = cycles(1 << 30).unwrap();
+    for watchdog in [100, 200] {
+        let tight = cycles(watchdog).expect("a legal wait tripped the watchdog");
+        assert_eq!(tight, patient, "watchdog {watchdog}");
+    }
 }

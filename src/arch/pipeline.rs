@@ -247,6 +247,13 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
         ..Default::default()
     };
     let mut last_progress = 0u64;
+    // The watchdog fires after `watchdog_cycles` without progress on top of the longest legal
+    // wait: the memory's bound plus the pipeline's own latencies.
+    let watchdog = config.compositing.watchdog_cycles
+        + memory.longest_legal_wait()
+        + config.skip.latency as u64
+        + stage_latency
+        + feedback_latency;
     let mut now = 0u64;
 
     // Retires a ray whose every issued sample is composited or discarded.
@@ -512,9 +519,11 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
         if moved {
             last_progress = now;
         } else {
-            let next = [
+            // The pipeline's own timed events (a skip result, a stage, ERT feedback, a ray
+            // leaving setup) each move something when they come: while one is pending, the
+            // pipeline is waiting, not stuck, however long (a slow brick traversal).
+            let pipeline_next = [
                 skip.next_event(),
-                memory.next_event(now),
                 stages.front().map(|s| s.due),
                 feedback.front().map(|&(due, _)| due),
                 in_setup
@@ -525,6 +534,10 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
             .into_iter()
             .flatten()
             .min();
+            let next = pipeline_next
+                .into_iter()
+                .chain(memory.next_event(now))
+                .min();
             match next {
                 Some(t) if skip_dead_cycles && !recording && t > now + 1 => span = t - now,
                 Some(_) => {}
@@ -540,8 +553,21 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
                 }
                 None => {}
             }
-            if now + span - last_progress > config.compositing.watchdog_cycles {
-                return Err(deadlock(now, &queue, &buffer, &stages, memory, "watchdog"));
+            if pipeline_next.is_some() {
+                last_progress = now;
+            } else if now + span - last_progress > watchdog {
+                return Err(deadlock(
+                    now,
+                    &queue,
+                    &buffer,
+                    &stages,
+                    memory,
+                    &format!(
+                        "watchdog: no progress for {} cycles, the longest legal wait of this \
+                         configuration plus compositing.watchdog_cycles",
+                        watchdog
+                    ),
+                ));
             }
         }
         if let Some(cause) = stall {
@@ -733,23 +759,37 @@ fn deadlock<M: VoxelMemory>(
     memory: &M,
     why: &str,
 ) -> Error {
-    let slots: Vec<String> = queue
-        .slots()
-        .map(|s| {
-            format!(
-                "ray {} k {} busy {} terminated {}",
-                s.ray_id, s.k, s.busy, s.terminated
-            )
-        })
-        .collect();
-    Error::Invalid(format!(
-        "pipeline deadlock at cycle {now} ({why}): ray queue [{}]; compositing buffer {} entries; \
-         {} samples in the stages; memory {}",
-        slots.join("; "),
+    // A readable dump: a few lines, not every slot and every module's counters.
+    const SHOWN: usize = 8;
+    let mut text = format!("pipeline deadlock at cycle {now} ({why})\n");
+    let slots: Vec<_> = queue.slots().collect();
+    text += &format!("  ray queue: {} rays\n", slots.len());
+    for s in slots.iter().take(SHOWN) {
+        text += &format!(
+            "    ray {} at position {}{}{}\n",
+            s.ray_id,
+            s.k,
+            if s.busy { ", busy" } else { "" },
+            if s.terminated { ", terminated" } else { "" }
+        );
+    }
+    if slots.len() > SHOWN {
+        text += &format!("    ... and {} more\n", slots.len() - SHOWN);
+    }
+    text += &format!(
+        "  compositing buffer: {} entries; samples in the stages: {}\n",
         buffer.len(),
-        stages.len(),
-        memory.stats_json()
-    ))
+        stages.len()
+    );
+    let mut stats = memory.stats_json();
+    if let Some(modules) = stats.as_object_mut().and_then(|m| m.remove("modules")) {
+        let count = modules.as_array().map_or(0, Vec::len);
+        text += &format!("  memory ({count} modules; per-module counters left out): ");
+    } else {
+        text += "  memory: ";
+    }
+    text += &stats.to_string();
+    Error::Invalid(text)
 }
 
 /// Pixel order: tiles of `tile` pixels, row-major inside a tile and across tiles.

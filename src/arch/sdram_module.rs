@@ -530,6 +530,8 @@ pub struct SdramMemory {
     /// Words still missing per tag (tags are compositing-buffer entry ids).
     missing: Vec<u8>,
     clock_mhz: f64,
+    /// `VoxelMemory::longest_legal_wait`.
+    longest_wait: u64,
 }
 
 impl SdramMemory {
@@ -547,6 +549,7 @@ impl SdramMemory {
                 .collect(),
             missing: Vec::new(),
             clock_mhz,
+            longest_wait: longest_legal_wait(config, timing),
         }
     }
 
@@ -562,6 +565,22 @@ impl SdramMemory {
     pub fn module_stats(&self) -> Vec<ModuleStats> {
         self.modules.iter().map(SdramModule::final_stats).collect()
     }
+}
+
+/// A bound on a request's legal wait: every request ahead of it in its address FIFO, the
+/// overtaking window and the voxel FIFO, plus itself, each taking at most every timing
+/// parameter in turn (precharge, activate, read, refresh, write turnarounds...). Loose on
+/// purpose: it only keeps the watchdog off legal waits.
+fn longest_legal_wait(config: &MemoryConfig, timing: &SdramTiming) -> u64 {
+    let per_request: u64 = timing
+        .parameters()
+        .iter()
+        .filter(|(name, _)| *name != "refresh_interval")
+        .chain(timing.write_parameters().iter())
+        .map(|&(_, cycles)| cycles as u64)
+        .sum();
+    let ahead = config.address_fifo_depth + config.overtaking_window + config.voxel_fifo_depth;
+    per_request * (ahead as u64 + 1)
 }
 
 impl VoxelMemory for SdramMemory {
@@ -655,5 +674,9 @@ impl VoxelMemory for SdramMemory {
             "avg_access_latency_cycles": sum(|s| s.total_latency_cycles) as f64 / reads,
             "modules": modules,
         })
+    }
+
+    fn longest_legal_wait(&self) -> u64 {
+        self.longest_wait
     }
 }

@@ -37,6 +37,10 @@ pub trait VoxelMemory {
     fn next_event(&self, now: u64) -> Option<u64>;
     /// Statistics as JSON (model-specific fields, documented by each model).
     fn stats_json(&self) -> serde_json::Value;
+    /// A bound on how long a request may legally wait with no sample coming back, in cycles:
+    /// the pipeline's watchdog allows this much on top of its own setting, so that it never
+    /// fires on slow but legal timing.
+    fn longest_legal_wait(&self) -> u64;
     /// Per-module waveform signals of the current cycle (none for models without modules).
     fn probe(&self, modules: &mut Vec<ModuleProbe>) {
         modules.clear();
@@ -97,6 +101,10 @@ impl VoxelMemory for IdealMemory {
     fn stats_json(&self) -> serde_json::Value {
         serde_json::json!({ "model": "ideal", "latency_cycles": self.latency, "requests": self.requests })
     }
+
+    fn longest_legal_wait(&self) -> u64 {
+        self.latency
+    }
 }
 
 impl<M: VoxelMemory + ?Sized> VoxelMemory for Box<M> {
@@ -120,6 +128,9 @@ impl<M: VoxelMemory + ?Sized> VoxelMemory for Box<M> {
     }
     fn stats_json(&self) -> serde_json::Value {
         (**self).stats_json()
+    }
+    fn longest_legal_wait(&self) -> u64 {
+        (**self).longest_legal_wait()
     }
     fn probe(&self, modules: &mut Vec<ModuleProbe>) {
         (**self).probe(modules)
