@@ -29,6 +29,7 @@ pub mod transfer;
 pub mod volume;
 // Ray start and end (issue 15).
 pub mod bricks;
+pub mod budget;
 pub mod clip;
 
 pub use error::{Error, Result};

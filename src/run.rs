@@ -25,7 +25,7 @@ use crate::error::{Error, Result};
 use crate::functional::renderer::{FixedRenderer, Leaping};
 use crate::leapvalues::{LeapValueStats, LeapValueVolume};
 use crate::render::float::FloatRenderer;
-use crate::render::{Frame, FrameStats, RenderSettings};
+use crate::render::{Frame, FrameStats, RayRecord, RenderSettings};
 use crate::transfer;
 use crate::volume::Volume;
 
@@ -135,6 +135,10 @@ impl RunDescription {
     pub fn validate(&self) -> Result<()> {
         View::parse(&self.view)?;
         check_image_size(self.size.0, self.size.1)?;
+        crate::budget::check(
+            &format!("a {}x{} frame", self.size.0, self.size.1),
+            frame_bytes(self.size),
+        )?;
         self.settings().validate()?;
         if let Memory::Ideal { latency } = self.memory {
             if !(1..=MAX_IDEAL_LATENCY).contains(&latency) {
@@ -229,9 +233,32 @@ impl<'v> Prepared<'v> {
     }
 }
 
+/// Bytes one frame of this size holds per pixel: the RGBA8 pixel, its ray record and the cycle
+/// model's per-ray state (an estimate for the memory budget, rounded up).
+fn frame_bytes(size: (u32, u32)) -> u64 {
+    size.0 as u64 * size.1 as u64 * (4 + std::mem::size_of::<RayRecord>() as u64 + 96)
+}
+
+/// Bytes per voxel the structures built from the volume take at their peak (an estimate for
+/// the memory budget, rounded up): leap-value preprocessing keeps labels, classes, squared
+/// distances and two word arrays at once; the distance volume its transform; shading 3×16-bit
+/// gradients.
+fn structure_bytes_per_voxel(run: &RunDescription) -> u64 {
+    let leaping = match Leaping::from_config(&run.hardware) {
+        Leaping::LeapValues { .. } => 32,
+        Leaping::Distance { .. } => 12,
+        _ => 0,
+    };
+    leaping + if run.shading { 6 } else { 0 }
+}
+
 /// Validates `run` and prepares it on `volume` (which must be the run's dataset).
 pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<'v>> {
     run.validate()?;
+    crate::budget::check(
+        &format!("this run's structures for `{}`", volume.name),
+        volume.data.len() as u64 * structure_bytes_per_voxel(run) + frame_bytes(run.size),
+    )?;
     let tf = transfer::resolve(&run.tf, &volume.name)?;
     let settings = run.settings();
     let renderer = match run.model {

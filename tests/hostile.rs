@@ -305,3 +305,104 @@ fn a_symlink_loop_in_the_data_folder_lists_each_dataset_once() {
         .collect();
     assert_eq!(names, ["blob"]);
 }
+
+/// Runs vizsim with a memory budget in the environment; returns success and stderr.
+fn run_with_budget(budget: &str, args: &[&str]) -> (bool, String) {
+    let output = Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args(args)
+        .env("VIZSIM_MEMORY_BUDGET", budget)
+        .output()
+        .unwrap();
+    (
+        output.status.success(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
+}
+
+/// Requests whose memory is known up front are refused with the figure and the budget
+/// instead of aborting in the allocation (issue 17, item 4): a 16384² frame, a small gzip
+/// NRRD that declares 2048×1024×1024 voxels, a phantom over a tiny budget, an experiment of
+/// six axes of 100 values (dry run).
+#[test]
+fn requests_over_the_memory_budget_are_refused_up_front() {
+    let dir = scratch("budget");
+    let (ok, stderr) = run_with_budget(
+        "1G",
+        &[
+            "sim",
+            "--dataset",
+            "phantom:sphere:16",
+            "--size",
+            "16384x16384",
+        ],
+    );
+    assert!(
+        !ok && stderr.contains("16384x16384 frame") && stderr.contains("budget of 1.0 GiB"),
+        "{stderr}"
+    );
+
+    let bomb = dir.join("bomb.nrrd");
+    let mut file =
+        b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 2048 1024 1024\nencoding: gzip\n\n".to_vec();
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    std::io::Write::write_all(&mut gz, &vec![0u8; 1 << 20]).unwrap();
+    file.extend(gz.finish().unwrap());
+    std::fs::write(&bomb, file).unwrap();
+    let (ok, stderr) = run_with_budget("1G", &["info", bomb.to_str().unwrap()]);
+    assert!(
+        !ok && stderr.contains("bomb.nrrd") && stderr.contains("4.0 GiB"),
+        "{stderr}"
+    );
+
+    // The command-line option wins over the environment.
+    let (ok, stderr) = run_with_budget(
+        "1T",
+        &["--memory-budget", "1M", "info", "phantom:sphere:128"],
+    );
+    assert!(
+        !ok && stderr.contains("phantom") && stderr.contains("budget of 1.0 MiB"),
+        "{stderr}"
+    );
+    let (ok, stderr) = run_with_budget("1T", &["--memory-budget", "5Q", "info", "phantom:sphere"]);
+    assert!(!ok && stderr.contains("K, M, G or T"), "{stderr}");
+
+    let mut experiment = String::from(
+        "name = \"huge\"\ndatasets = [\"phantom:sphere:8\"]\ntf = [\"zero\"]\nmodes = [\"none\"]\n\
+         models = [\"step\"]\n[frames]\norbit = 1\n[axes]\n",
+    );
+    let values: Vec<String> = (1..=100).map(|v| v.to_string()).collect();
+    for field in [
+        "ray_queue.rays",
+        "skip.latency",
+        "compositing.stage_latency",
+        "compositing.ert_feedback_latency",
+        "memory.address_fifo_depth",
+        "memory.voxel_fifo_depth",
+    ] {
+        experiment += &format!("\"{field}\" = [{}]\n", values.join(", "));
+    }
+    let path = dir.join("huge.toml");
+    std::fs::write(&path, experiment).unwrap();
+    let out = dir.join("out");
+    let start = Instant::now();
+    let (ok, stderr) = run_with_budget(
+        "64G",
+        &[
+            "sweep",
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--dry-run",
+        ],
+    );
+    assert!(
+        !ok && stderr.contains("1000000000000 runs, over the limit"),
+        "{stderr}"
+    );
+    assert!(
+        start.elapsed() < Duration::from_secs(20),
+        "took {:?}",
+        start.elapsed()
+    );
+    assert!(!out.exists());
+}

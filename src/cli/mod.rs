@@ -34,6 +34,11 @@ pub struct Cli {
     /// Worker threads (default: all cores). Results are identical for any count.
     #[arg(long, global = true)]
     threads: Option<usize>,
+    /// Memory budget, e.g. 8G or 512M: requests known to need more (a volume from its header,
+    /// a frame from its size, an experiment from its run count) are refused up front. Default:
+    /// env VIZSIM_MEMORY_BUDGET, else the memory available.
+    #[arg(long, global = true, value_parser = vizsim::budget::parse)]
+    memory_budget: Option<u64>,
     #[command(subcommand)]
     command: Command,
 }
@@ -78,6 +83,9 @@ enum Command {
 }
 
 pub fn run(cli: Cli) -> Result<()> {
+    if let Some(bytes) = cli.memory_budget {
+        vizsim::budget::set(bytes);
+    }
     if let Some(n) = cli.threads {
         rayon::ThreadPoolBuilder::new()
             .num_threads(n)

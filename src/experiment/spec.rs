@@ -290,6 +290,11 @@ pub struct Expansion {
     pub volumes: BTreeMap<String, Arc<Volume>>,
 }
 
+/// The most runs one experiment may expand to: 10^6 runs took 2.2 GB to expand.
+pub const MAX_RUNS: u64 = 200_000;
+/// Memory one expanded run holds (its resolved configuration and identity), rounded up.
+const BYTES_PER_RUN: u64 = 4096;
+
 /// Configuration fields a mode or the tf axis sets.
 const MODE_FIELDS: [&str; 9] = [
     "compositing.ert",
@@ -474,6 +479,29 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
         }
     }
     groups.sort();
+    // The run count, before anything is built: a product of long axes is refused with its
+    // figure instead of exhausting memory (each run holds its resolved configuration).
+    let count = [
+        experiment.datasets.len(),
+        experiment.tf.len(),
+        modes.len(),
+        models.len(),
+        frame_list.len(),
+    ]
+    .into_iter()
+    .chain(groups.iter().map(|g| axes[g[0]].1.len()))
+    .try_fold(1u64, |acc, n| acc.checked_mul(n as u64))
+    .unwrap_or(u64::MAX);
+    if count > MAX_RUNS {
+        return Err(bad(
+            "axes",
+            format!(
+                "the experiment expands to {count} runs, over the limit of {MAX_RUNS}; split \
+                 it into several experiments (fewer axis values, datasets or frames each)"
+            ),
+        ));
+    }
+    crate::budget::check(&format!("expanding {count} runs"), count * BYTES_PER_RUN)?;
     // Cartesian product over groups.
     let mut combos: Vec<Vec<(String, toml::Value)>> = vec![Vec::new()];
     for group in &groups {

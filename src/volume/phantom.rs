@@ -227,6 +227,8 @@ pub fn parse_spec(text: &str) -> Result<PhantomSpec> {
         }
     }
     spec.check().map_err(bad)?;
+    let voxels = (spec.size as u64).pow(3);
+    crate::budget::check(&format!("phantom `{text}`"), voxels * 2)?;
     Ok(spec)
 }
 

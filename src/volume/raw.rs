@@ -138,11 +138,18 @@ pub(crate) fn payload_bytes(dims: [usize; 3], bits: u8) -> std::result::Result<u
         16 => 2,
         _ => return Err(format!("{bits} bits per voxel; allowed: 8 or 16")),
     };
-    dims.iter()
+    let bytes = dims
+        .iter()
         .try_fold(bytes_per_voxel, |acc, &d| acc.checked_mul(d))
         .ok_or_else(|| {
             format!("dimensions {dims:?} need more bytes than this platform can address")
-        })
+        })?;
+    // In memory every voxel is a 16-bit sample: checked before a byte is read, so a small
+    // compressed file that declares a huge volume is refused, not expanded.
+    let voxels = (dims[0] * dims[1] * dims[2]) as u64;
+    crate::budget::check(&format!("a volume of {dims:?} voxels"), voxels * 2)
+        .map_err(|e| e.to_string())?;
+    Ok(bytes)
 }
 
 /// Why a payload could not be decoded.
