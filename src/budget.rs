@@ -4,8 +4,10 @@
 //! aborting the process when the allocation fails.
 //!
 //! The budget is `--memory-budget` (any command), else the environment variable
-//! `VIZSIM_MEMORY_BUDGET`, else the memory the machine has available (`MemAvailable` in
-//! /proc/meminfo); where none is known, nothing is refused. Values are bytes with an optional
+//! `VIZSIM_MEMORY_BUDGET`, else the memory the machine has (`MemTotal` in /proc/meminfo, or
+//! the control group's `memory.max` when smaller); where none is known, nothing is refused.
+//! Not the memory available at the moment: that changes with other processes, and the same
+//! request must get the same answer. Values are bytes with an optional
 //! K, M, G or T suffix (powers of 1024).
 
 use std::sync::OnceLock;
@@ -58,15 +60,18 @@ pub fn budget() -> Result<Option<u64>> {
             .map(Some)
             .map_err(|m| Error::Invalid(format!("{ENV}: {m}")));
     }
-    Ok(available())
+    Ok(machine_memory())
 }
 
-/// `MemAvailable` from /proc/meminfo.
-fn available() -> Option<u64> {
+/// `MemTotal` from /proc/meminfo, or the control group's limit when smaller.
+fn machine_memory() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
+    let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let total = line.split_whitespace().nth(1)?.parse::<u64>().ok()? * 1024;
+    let group = std::fs::read_to_string("/sys/fs/cgroup/memory.max")
+        .ok()
+        .and_then(|t| t.trim().parse::<u64>().ok());
+    Some(group.map_or(total, |g| g.min(total)))
 }
 
 /// Refuses `bytes` for `what` when over the budget.
@@ -74,7 +79,7 @@ pub fn check(what: &str, bytes: u64) -> Result<()> {
     match budget()? {
         Some(limit) if bytes > limit => Err(Error::Invalid(format!(
             "{what} needs about {} of memory, over the budget of {} (--memory-budget or \
-             {ENV}; default: the memory available)",
+             {ENV}; default: the machine's memory)",
             human(bytes),
             human(limit)
         ))),

@@ -36,7 +36,7 @@ pub struct Cli {
     threads: Option<usize>,
     /// Memory budget, e.g. 8G or 512M: requests known to need more (a volume from its header,
     /// a frame from its size, an experiment from its run count) are refused up front. Default:
-    /// env VIZSIM_MEMORY_BUDGET, else the memory available.
+    /// env VIZSIM_MEMORY_BUDGET, else the machine's memory.
     #[arg(long, global = true, value_parser = vizsim::budget::parse)]
     memory_budget: Option<u64>,
     #[command(subcommand)]
