@@ -570,3 +570,67 @@ fn when_density_zero_is_visible_every_block_is_active() {
         without_rule.blocks()
     );
 }
+
+/// The command line: `sim` of a volume too large without blocking fails with the hint and
+/// writes nothing; with `--set blocking.enabled=true` it renders and prints and saves the
+/// blocking figures.
+#[test]
+fn sim_says_blocking_makes_it_fit_and_reports_the_memory_saved() {
+    let dir = std::env::temp_dir().join(format!("vizsim-blocking-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = dir.join("jet.png");
+    let json = dir.join("jet.json");
+    let _ = std::fs::remove_file(&png);
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "sim",
+            "--dataset",
+            "phantom:jet:128",
+            "--size",
+            "32x32",
+            "--set",
+            "memory.rows=128",
+            "--set",
+            "blocking.block_size=16",
+            "-o",
+            png.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        std::process::Command::new(env!("CARGO_BIN_EXE_vizsim"))
+            .args(&args)
+            .output()
+            .unwrap()
+    };
+    let out = run(&[]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(
+        stderr.contains("does not fit without blocking")
+            && stderr.contains("81 active blocks of 512"),
+        "{stderr}"
+    );
+    assert!(!png.exists());
+    let out = run(&["--set", "blocking.enabled=true"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("blocking: 81 of 512 blocks of 16³ active"),
+        "{stdout}"
+    );
+    assert!(png.exists());
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let b = &report["blocking"];
+    assert_eq!(b["active_blocks"], 81);
+    assert_eq!(b["rows_unblocked"], 256);
+    assert!(b["rows_blocked"].as_u64().unwrap() <= 128);
+    assert!(b["zero_samples"].as_u64().unwrap() > 0);
+    assert_eq!(report["run"]["hardware"]["blocking"]["enabled"], true);
+}

@@ -376,8 +376,10 @@ impl AddressMap {
     /// unit G = slot · units + j, bank = G mod banks, row = G / banks. Whole word blocks come
     /// in x-fastest order, so with 4 banks those next along x or y lie in another bank and
     /// those next along z in the same one, as unblocked. `linear4`: the slot's words in linear
-    /// order. Samples of inactive blocks are
-    /// not read (`arch::block_lookup`); `sample_words` of one is empty.
+    /// order. Samples of inactive blocks are not read (`arch::block_lookup`); `sample_words` of
+    /// one is empty. Only sample reads are blocked: `distance_word` and `voxel_copies` keep the
+    /// unblocked layout (blocking needs `occupancy.structure = "map"`, and the update engine
+    /// writes unblocked volumes).
     pub fn blocked(
         config: &MemoryConfig,
         dims: [usize; 3],
@@ -391,7 +393,7 @@ impl AddressMap {
         map
     }
 
-    /// The word of voxel (x, y, z) in slot `slot` of the block at voxel `origin`.
+    /// The word of voxel `v` in slot `slot` of the block whose first voxel is `origin`.
     #[inline]
     fn slot_word(&self, b: &Blocked, slot: u32, origin: [usize; 3], v: [usize; 3]) -> WordAddress {
         let c = &self.config;
