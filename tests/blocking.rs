@@ -634,3 +634,73 @@ fn sim_says_blocking_makes_it_fit_and_reports_the_memory_saved() {
     assert!(b["zero_samples"].as_u64().unwrap() > 0);
     assert_eq!(report["run"]["hardware"]["blocking"]["enabled"], true);
 }
+
+/// The lookup stage's `next_event` lets the clock jump only over cycles in which nothing can
+/// happen: jumping equals ticking every cycle (with controllers that do not sleep), for lookup
+/// latencies 0, 3 and 20, SDRAM and ideal memory.
+#[test]
+fn jumping_over_dead_cycles_equals_ticking_with_blocking() {
+    use vizsim::arch::block_lookup::BlockLookup;
+    use vizsim::arch::pipeline::simulate;
+    use vizsim::arch::sdram_module::SdramMemory;
+    use vizsim::arch::voxel_memory::IdealMemory;
+    let volume = phantom("phantom:jet:64");
+    for latency in [0u32, 3, 20] {
+        let latency_set = format!("blocking.lookup_latency={latency}");
+        let run = description(
+            &volume,
+            "class",
+            Model::Cycle,
+            &blocked(16, &[&latency_set]),
+        );
+        let prepared = prepare(&run, &volume).unwrap();
+        let renderer = prepared.fixed().unwrap();
+        let table = renderer.blocks.clone().unwrap();
+        let camera = run.camera(&volume).unwrap();
+        let config = &run.hardware;
+        let sdram = |fast: bool| {
+            let map = AddressMap::blocked(&config.memory, volume.dims, table.clone());
+            let memory = SdramMemory::with_map(&config.memory, &config.sdram, map, 100.0);
+            let memory = if fast {
+                memory
+            } else {
+                memory.without_sleeping()
+            };
+            let mut memory = BlockLookup::new(memory, table.clone(), latency);
+            let result = simulate(
+                renderer,
+                &camera,
+                &renderer.skipper(),
+                &mut memory,
+                config,
+                fast,
+                None,
+            )
+            .unwrap();
+            (result, memory.inner.module_stats(), memory.zero_samples)
+        };
+        let ((jumped, jm, jz), (ticked, tm, tz)) = (sdram(true), sdram(false));
+        assert_eq!(
+            jumped.stats.cycles, ticked.stats.cycles,
+            "latency {latency}"
+        );
+        assert!(jumped.frame.pixels == ticked.frame.pixels);
+        assert_eq!((jm, jz), (tm, tz), "latency {latency}");
+        assert!(jz > 0);
+        let ideal = |fast: bool| {
+            let mut memory = BlockLookup::new(IdealMemory::new(6), table.clone(), latency);
+            let result = simulate(
+                renderer,
+                &camera,
+                &renderer.skipper(),
+                &mut memory,
+                config,
+                fast,
+                None,
+            )
+            .unwrap();
+            result.stats.cycles
+        };
+        assert_eq!(ideal(true), ideal(false), "ideal, latency {latency}");
+    }
+}
