@@ -48,6 +48,40 @@ pub struct HardwareConfig {
     /// Opaque geometry embedded in the volume. Written out only when a shape is set.
     #[serde(default, skip_serializing_if = "GeometryConfig::is_off")]
     pub geometry: GeometryConfig,
+    /// 2-way blocking: volume memory holds only the active blocks, found through an on-chip
+    /// indirection table (docs/model.md, "Blocking"). Written out only when not the default.
+    #[serde(default, skip_serializing_if = "BlockingConfig::is_default")]
+    pub blocking: BlockingConfig,
+}
+
+/// `[blocking]`: the volume memory holds only the active blocks of `block_size`³ voxels, each
+/// stored with a one-voxel border in a slot; the address generator finds a sample's slot in an
+/// on-chip indirection table (block index → slot), which costs `lookup_latency` cycles.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BlockingConfig {
+    pub enabled: bool,
+    /// Block edge in voxels: a power of two 4..=256, at least `bricks.size` and
+    /// `occupancy.subcube`, dividing every dimension of the volume.
+    pub block_size: usize,
+    /// Cycles the indirection-table lookup adds to address generation (a pipelined stage).
+    pub lookup_latency: u32,
+}
+
+impl Default for BlockingConfig {
+    fn default() -> Self {
+        BlockingConfig {
+            enabled: false,
+            block_size: 32,
+            lookup_latency: 2,
+        }
+    }
+}
+
+impl BlockingConfig {
+    pub fn is_default(&self) -> bool {
+        *self == BlockingConfig::default()
+    }
 }
 
 /// `[bricks]`: bounding bricks give each ray a start (the first sample in an active brick) and
@@ -712,7 +746,61 @@ impl HardwareConfig {
                 format!("{step} is out of range; allowed 0.001..=1e6 ns"),
             ));
         }
-        self.validate_ray_range(source)
+        self.validate_ray_range(source)?;
+        self.validate_blocking(source)
+    }
+
+    /// `[blocking]`: the block size and what it must cover (the volume's dimensions are
+    /// checked when a volume is prepared: `blocking::check_block_size`).
+    fn validate_blocking(&self, source: &str) -> Result<()> {
+        let b = &self.blocking;
+        let err = |field: &str, msg: String| Err(Error::config(source, field, msg));
+        if !b.block_size.is_power_of_two() || !(4..=256).contains(&b.block_size) {
+            return err(
+                "blocking.block_size",
+                format!(
+                    "{} is not allowed; allowed a power of two 4..=256",
+                    b.block_size
+                ),
+            );
+        }
+        check_range(
+            source,
+            "blocking.lookup_latency",
+            b.lookup_latency as u64,
+            0,
+            64,
+        )?;
+        if !b.enabled {
+            return Ok(());
+        }
+        for (field, size) in [
+            ("bricks.size", self.bricks.size),
+            ("occupancy.subcube", self.occupancy.subcube),
+        ] {
+            if size > b.block_size {
+                return err(
+                    "blocking.block_size",
+                    format!(
+                        "{} is smaller than {field} ({size}); a block must hold whole bricks \
+                         and sub-cubes",
+                        b.block_size
+                    ),
+                );
+            }
+        }
+        if self.occupancy.structure != LeapStructure::Map {
+            return err(
+                "blocking.enabled",
+                format!(
+                    "blocking works with occupancy.structure = \"map\" only (not {:?}): the \
+                     distance volume and leap values are stored in volume memory outside the \
+                     blocks",
+                    self.occupancy.structure
+                ),
+            );
+        }
+        Ok(())
     }
 
     /// `[bricks]`, `[clip]` and `[geometry]`.
@@ -849,6 +937,7 @@ fn insert_default_sections(table: &mut toml::Table) {
         ("bricks", toml::Table::try_from(BricksConfig::default())),
         ("clip", toml::Table::try_from(ClipConfig::default())),
         ("geometry", toml::Table::try_from(GeometryConfig::default())),
+        ("blocking", toml::Table::try_from(BlockingConfig::default())),
     ] {
         let Ok(default) = default else { continue };
         match table.get_mut(name) {

@@ -27,6 +27,8 @@ pub mod skip;
 pub mod tables;
 pub mod transfer;
 pub mod volume;
+// 2-way blocking (issue 16).
+pub mod blocking;
 // Ray start and end (issue 15).
 pub mod bricks;
 pub mod budget;

@@ -13,11 +13,14 @@ use std::time::Instant;
 use serde::Serialize;
 use serde_json::Value;
 
+use crate::arch::address_map::AddressMap;
+use crate::arch::block_lookup::BlockLookup;
 use crate::arch::command_trace::CommandTrace;
 use crate::arch::pipeline::{simulate_with, CycleStats, SimOptions, StallCycles};
 use crate::arch::sdram_module::SdramMemory;
 use crate::arch::trace::Waveform;
 use crate::arch::voxel_memory::{IdealMemory, VoxelMemory};
+use crate::blocking::{BlockTable, BlockingStats};
 use crate::bricks::RayRangeStats;
 use crate::camera::{check_image_size, Camera, Projection, View};
 use crate::config::{HardwareConfig, LeapRegions, RaySelection};
@@ -278,21 +281,38 @@ pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<
             Renderer::Float(Box::new(renderer.with_ray_range(&run.hardware)?))
         }
         Model::Step | Model::Cycle => {
-            if run.model == Model::Cycle && run.memory == Memory::Sdram {
+            let sdram = run.model == Model::Cycle && run.memory == Memory::Sdram;
+            if sdram && !run.hardware.blocking.enabled {
                 let distance = matches!(run.leaping(), Leaping::Distance { .. });
-                run.hardware.memory.check_covers_with(
+                if let Err(e) = run.hardware.memory.check_covers_with(
                     volume.dims,
                     distance,
                     "hardware configuration",
-                )?;
+                ) {
+                    return Err(with_blocking_hint(e, run, volume, &tf, &settings));
+                }
             }
-            Renderer::Fixed(Box::new(FixedRenderer::new(
-                volume,
-                &tf,
-                &settings,
-                &run.hardware,
-                run.leaping(),
-            )?))
+            let renderer =
+                FixedRenderer::new(volume, &tf, &settings, &run.hardware, run.leaping())?;
+            if let (true, Some(blocks)) = (sdram, &renderer.blocks) {
+                let memory = &run.hardware.memory;
+                let stats = BlockingStats::new(blocks, memory, volume.dims, 0);
+                if !stats.fits(memory) {
+                    return Err(Error::config(
+                        "hardware configuration",
+                        "memory.rows",
+                        format!(
+                            "a {:?} volume does not fit even with blocking: {}, {} rows per \
+                             bank; the modules have {} rows",
+                            volume.dims,
+                            stats.describe(),
+                            stats.rows_blocked,
+                            memory.rows
+                        ),
+                    ));
+                }
+            }
+            Renderer::Fixed(Box::new(renderer))
         }
     };
     // A depth image must match the image it is rendered into.
@@ -304,6 +324,67 @@ pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<
         transfer_function: tf.name,
         renderer,
     })
+}
+
+/// A memory error without blocking, with what blocking (at `blocking.block_size`, or 32 when
+/// that does not divide the volume) would need: "does not fit; with blocking (block 32) it needs
+/// N active blocks of M ...".
+fn with_blocking_hint(
+    error: Error,
+    run: &RunDescription,
+    volume: &Volume,
+    tf: &transfer::TransferFunction,
+    settings: &RenderSettings,
+) -> Error {
+    let Error::Config {
+        source_name,
+        field,
+        message,
+    } = error
+    else {
+        return error;
+    };
+    let config = &run.hardware;
+    let size = [config.blocking.block_size, 32, 16, 8]
+        .into_iter()
+        .find(|&b| volume.dims.iter().all(|&d| d.is_multiple_of(b)));
+    let hint = match (size, run.leaping()) {
+        (Some(size), Leaping::None | Leaping::Occupancy { .. }) => {
+            let table = crate::functional::arith::ClassificationTable::build(
+                tf,
+                volume.max_value() as usize + 1,
+                config.classification.lut_bits,
+                settings.sample_spacing,
+            );
+            let blocks = BlockTable::build(
+                volume,
+                config.occupancy.kind,
+                size.trailing_zeros(),
+                table.any_visible(0, 0),
+                |lo, hi| table.any_visible(lo, hi),
+            );
+            let stats = BlockingStats::new(&blocks, &config.memory, volume.dims, 0);
+            if stats.fits(&config.memory) {
+                format!(
+                    "; it does not fit without blocking, {}: it fits with --set \
+                     blocking.enabled=true{}",
+                    stats.describe(),
+                    if size == config.blocking.block_size {
+                        String::new()
+                    } else {
+                        format!(" --set blocking.block_size={size}")
+                    }
+                )
+            } else {
+                format!(
+                    "; it does not fit with blocking either ({})",
+                    stats.describe()
+                )
+            }
+        }
+        _ => String::new(),
+    };
+    Error::config(source_name, field, format!("{message}{hint}"))
 }
 
 /// Optional observers of a cycle-model run.
@@ -361,6 +442,10 @@ pub struct Measurements {
     /// and (cycle model) the setup's cycles or the start/end table; absent when all are off.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ray_range: Option<RayRangeStats>,
+    /// 2-way blocking (`[blocking]`): blocks active of all, memory rows and words with and
+    /// without blocking, the table's bits; absent when off.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub blocking: Option<BlockingStats>,
 }
 
 /// What a run produced: its description, the figures, the image.
@@ -423,21 +508,52 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         (Renderer::Fixed(r), _) => {
             let result = match run.memory {
                 Memory::Sdram => {
-                    let mut memory = SdramMemory::new(
-                        &config.memory,
-                        &config.sdram,
-                        prepared.volume.dims,
-                        config.clock.frequency_mhz,
-                    );
-                    let result = simulate_on(r, &camera, &mut memory, config, probes)?;
-                    memory_stats = Some(memory.stats_json());
-                    result
+                    let dims = prepared.volume.dims;
+                    match &r.blocks {
+                        Some(blocks) => {
+                            let map = AddressMap::blocked(&config.memory, dims, blocks.clone());
+                            let memory = SdramMemory::with_map(
+                                &config.memory,
+                                &config.sdram,
+                                map,
+                                config.clock.frequency_mhz,
+                            );
+                            let latency = config.blocking.lookup_latency;
+                            let mut memory = BlockLookup::new(memory, blocks.clone(), latency);
+                            let result = simulate_on(r, &camera, &mut memory, config, probes)?;
+                            memory_stats = Some(memory.stats_json());
+                            result
+                        }
+                        None => {
+                            let mut memory = SdramMemory::new(
+                                &config.memory,
+                                &config.sdram,
+                                dims,
+                                config.clock.frequency_mhz,
+                            );
+                            let result = simulate_on(r, &camera, &mut memory, config, probes)?;
+                            memory_stats = Some(memory.stats_json());
+                            result
+                        }
+                    }
                 }
                 Memory::Ideal { latency } => {
-                    let mut memory = IdealMemory::new(latency);
-                    let result = simulate_on(r, &camera, &mut memory, config, probes)?;
-                    memory_stats = Some(memory.stats_json());
-                    result
+                    let memory = IdealMemory::new(latency);
+                    match &r.blocks {
+                        Some(blocks) => {
+                            let latency = config.blocking.lookup_latency;
+                            let mut memory = BlockLookup::new(memory, blocks.clone(), latency);
+                            let result = simulate_on(r, &camera, &mut memory, config, probes)?;
+                            memory_stats = Some(memory.stats_json());
+                            result
+                        }
+                        None => {
+                            let mut memory = memory;
+                            let result = simulate_on(r, &camera, &mut memory, config, probes)?;
+                            memory_stats = Some(memory.stats_json());
+                            result
+                        }
+                    }
                 }
             };
             pipeline = Some(result.stats);
@@ -489,6 +605,18 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
     if let Some(map) = prepared.fixed().and_then(|r| r.map.as_ref()) {
         m.skippable_subcubes_percent =
             Some(100.0 * map.empty_subcubes() as f64 / map.subcubes().max(1) as f64);
+    }
+    if let Some(blocks) = prepared.fixed().and_then(|r| r.blocks.as_ref()) {
+        let mut stats = BlockingStats::new(
+            blocks,
+            &config.memory,
+            prepared.volume.dims,
+            config.blocking.lookup_latency,
+        );
+        stats.zero_samples = memory_stats
+            .as_ref()
+            .and_then(|ms| ms["zero_samples"].as_u64());
+        m.blocking = Some(stats);
     }
     let leap_values = prepared.leap_value_stats();
     m.leap_voxels = leap_values.map(|s| s.leap_voxels);

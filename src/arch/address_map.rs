@@ -19,6 +19,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::blocking::{BlockTable, SlotLayout};
 use crate::error::{Error, Result};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -307,6 +308,15 @@ pub struct AddressMap {
     distance_row: u32,
     /// XOR applied to a distance word's bank (`memory.distance_placement`).
     distance_bank_xor: u32,
+    /// 2-way blocking: the indirection table and the slot layout (`AddressMap::blocked`).
+    blocked: Option<Blocked>,
+}
+
+/// The blocked layout: a sample's words lie in its block's slot.
+#[derive(Clone, Debug)]
+struct Blocked {
+    table: std::sync::Arc<BlockTable>,
+    layout: SlotLayout,
 }
 
 #[derive(Clone, Copy, Debug, Default)]
@@ -333,6 +343,7 @@ impl AddressMap {
                 DistancePlacement::SameBank => 0,
                 DistancePlacement::OtherBank => config.banks - 1,
             },
+            blocked: None,
         };
         if config.mapping != Mapping::Linear4 {
             // One past the local extent: a neighbourhood's upper corner may lie there.
@@ -352,6 +363,81 @@ impl AddressMap {
             });
         }
         map
+    }
+
+    /// The blocked layout (2-way blocking, `crate::blocking`): only the table's active blocks
+    /// are stored, block b in slot `table.slot(b)`. A slot holds the block with a one-voxel
+    /// border, (B + 2)³ voxels from B·b − 1, in the mapping's modules (module by the voxel's
+    /// own parities, as unblocked) and module-local words (slot-local voxel / 2 per axis; z
+    /// whole for the voxel-pair layouts). Inside a slot the words are grouped in the
+    /// `memory.block` word blocks as unblocked, packed largest first (`SlotLayout`): a whole
+    /// word block is one row unit, as unblocked, and the partial ones of the border share
+    /// units. Word w of the slot is in unit j = w / columns at column w mod columns; global
+    /// unit G = slot · units + j, bank = G mod banks, row = G / banks. Whole word blocks come
+    /// in x-fastest order, so with 4 banks those next along x or y lie in another bank and
+    /// those next along z in the same one, as unblocked. `linear4`: the slot's words in linear
+    /// order. Samples of inactive blocks are not read (`arch::block_lookup`); `sample_words` of
+    /// one is empty. Only sample reads are blocked: `distance_word` and `voxel_copies` keep the
+    /// unblocked layout (blocking needs `occupancy.structure = "map"`, and the update engine
+    /// writes unblocked volumes).
+    pub fn blocked(
+        config: &MemoryConfig,
+        dims: [usize; 3],
+        table: std::sync::Arc<BlockTable>,
+    ) -> AddressMap {
+        let mut map = AddressMap::new(config, dims);
+        map.blocked = Some(Blocked {
+            layout: SlotLayout::new(config, table.block_size()),
+            table,
+        });
+        map
+    }
+
+    /// The word of voxel `v` in slot `slot` of the block whose first voxel is `origin`.
+    #[inline]
+    fn slot_word(&self, b: &Blocked, slot: u32, origin: [usize; 3], v: [usize; 3]) -> WordAddress {
+        let c = &self.config;
+        let (x, y, z) = (
+            v[0] - origin[0] + 1,
+            v[1] - origin[1] + 1,
+            v[2] - origin[2] + 1,
+        );
+        let (module, l) = match c.mapping {
+            Mapping::Interleaved8 => (
+                (v[0] & 1) + 2 * (v[1] & 1) + 4 * (v[2] & 1),
+                [x >> 1, y >> 1, z >> 1],
+            ),
+            _ => ((v[0] & 1) + 2 * (v[1] & 1), [x >> 1, y >> 1, z]),
+        };
+        let layout = &b.layout;
+        let word = match c.mapping {
+            Mapping::Linear4 => l[0] + layout.local[0] * (l[1] + layout.local[1] * l[2]),
+            _ => {
+                let lg = self.block_log2;
+                let wb = [0, 1, 2].map(|a| l[a] >> lg[a]);
+                let o = [0, 1, 2].map(|a| l[a] & ((1 << lg[a]) - 1));
+                let g = layout.word_blocks;
+                let (sx, sy) = (layout.extents[0][wb[0]], layout.extents[1][wb[1]]);
+                layout.starts[wb[0] + g[0] * (wb[1] + g[1] * wb[2])]
+                    + o[0]
+                    + sx * (o[1] + sy * o[2])
+            }
+        };
+        let (unit, column) = (word / c.columns as usize, word % c.columns as usize);
+        let global = slot as usize * layout.units + unit;
+        let banks = c.banks as usize;
+        WordAddress {
+            module: module as u32,
+            bank: (global % banks) as u32,
+            row: (global / banks) as u32,
+            column: column as u32,
+        }
+    }
+
+    /// Blocked layout: the slot of the block holding voxel `base` (None: inactive, or not
+    /// blocked).
+    pub fn slot_at(&self, base: [usize; 3]) -> Option<u32> {
+        self.blocked.as_ref().and_then(|b| b.table.slot_at(base))
     }
 
     /// The words a sample with lower corner `base` reads, one per module it touches: the first
@@ -375,6 +461,26 @@ impl AddressMap {
     /// puts the 2×2×2 neighbourhood on distinct modules; tests/sdram.rs checks it).
     #[inline]
     pub fn for_each_sample_word(&self, base: [usize; 3], mut f: impl FnMut(WordAddress)) {
+        if let Some(b) = &self.blocked {
+            let block = b.table.block_of(base);
+            let Some(slot) = b.table.slot(block) else {
+                return;
+            };
+            let origin = block.map(|c| c << b.table.block_log2);
+            let dz_range = match self.config.mapping {
+                Mapping::Interleaved8 => 0..2,
+                _ => 0..1,
+            };
+            for dz in dz_range {
+                for dy in 0..2 {
+                    for dx in 0..2 {
+                        let v = [base[0] + dx, base[1] + dy, base[2] + dz];
+                        f(self.slot_word(b, slot, origin, v));
+                    }
+                }
+            }
+            return;
+        }
         let dz_range = match self.config.mapping {
             Mapping::Interleaved8 => 0..2,
             _ => 0..1, // the word at z holds the pair (z, z+1)

@@ -3,6 +3,7 @@
 //! clock. Arithmetic comes from the functional model.
 
 pub mod address_map;
+pub mod block_lookup;
 pub mod command_trace;
 pub mod compositing_buffer;
 pub mod overtaking_fifo;

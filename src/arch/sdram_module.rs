@@ -541,8 +541,18 @@ impl SdramMemory {
         dims: [usize; 3],
         clock_mhz: f64,
     ) -> Self {
+        Self::with_map(config, timing, AddressMap::new(config, dims), clock_mhz)
+    }
+
+    /// The modules addressed through `map` (e.g. the blocked layout, `AddressMap::blocked`).
+    pub fn with_map(
+        config: &MemoryConfig,
+        timing: &SdramTiming,
+        map: AddressMap,
+        clock_mhz: f64,
+    ) -> Self {
         SdramMemory {
-            map: AddressMap::new(config, dims),
+            map,
             now: 0,
             modules: (0..config.modules())
                 .map(|_| SdramModule::new(config, timing))

@@ -354,6 +354,31 @@ pub fn ray_range_text(m: &vizsim::run::Measurements) -> String {
     text
 }
 
+/// The blocking figures as a user reads them (empty when blocking is off).
+pub fn blocking_text(m: &vizsim::run::Measurements) -> String {
+    let Some(b) = &m.blocking else {
+        return String::new();
+    };
+    let mut text = format!(
+        "blocking: {} of {} blocks of {}³ active; memory {} rows per bank = {} words ({} without \
+         blocking: {} words, {:.1} % saved); table {} bits on chip, lookup {} cycles",
+        b.active_blocks,
+        b.blocks,
+        b.block_size,
+        b.rows_blocked,
+        b.memory_words_blocked,
+        b.rows_unblocked,
+        b.memory_words_unblocked,
+        100.0 * (1.0 - b.memory_words_blocked as f64 / b.memory_words_unblocked.max(1) as f64),
+        b.table_sram_bits,
+        b.lookup_latency
+    );
+    if let Some(zero) = b.zero_samples {
+        text += &format!("; {zero} samples in inactive blocks read as zero (no memory read)");
+    }
+    text
+}
+
 /// The command line as typed, for the provenance line of generated reports: `vizsim` and the
 /// arguments, quoted where a shell would need it. Relative paths stay relative, so the same
 /// command run from another folder records the same line.

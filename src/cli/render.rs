@@ -83,6 +83,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if report.measurements.ray_range.is_some() {
         println!("{}", super::ray_range_text(&report.measurements));
     }
+    if report.measurements.blocking.is_some() {
+        println!("{}", super::blocking_text(&report.measurements));
+    }
     if let Some(json) = &args.json {
         vizsim::output::write_json(json, &report)?;
     }

@@ -152,6 +152,9 @@ pub fn run(args: SimArgs) -> Result<()> {
     if report.measurements.ray_range.is_some() {
         println!("{}", super::ray_range_text(&report.measurements));
     }
+    if report.measurements.blocking.is_some() {
+        println!("{}", super::blocking_text(&report.measurements));
+    }
     if let Some(path) = &args.output {
         report.frame.write_png(path)?;
     }

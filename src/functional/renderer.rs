@@ -12,6 +12,7 @@ use super::leaping::{
 };
 use super::setup::{check_widths, setup_ray, FixedRay};
 use super::Widths;
+use crate::blocking::{check_block_size, BlockTable};
 use crate::bricks::FixedRange;
 use crate::camera::Camera;
 use crate::config::{HardwareConfig, LeapRegions, LeapStructure, SkipPolicy};
@@ -89,6 +90,9 @@ pub struct FixedRenderer<'a> {
     pub gradients: Option<GradientVolume>,
     /// Ray start and end (`[bricks]`, `[clip]`, `[geometry]`); None when all are off.
     pub ray_range: Option<FixedRange>,
+    /// 2-way blocking (`[blocking]`): the indirection table; a sample whose lower corner lies
+    /// in an inactive block reads zero voxels and gradients.
+    pub blocks: Option<std::sync::Arc<BlockTable>>,
 }
 
 impl<'a> FixedRenderer<'a> {
@@ -179,7 +183,21 @@ impl<'a> FixedRenderer<'a> {
             widths.position_frac_bits,
             compositor.unit,
         )?;
+        let blocks = match config.blocking.enabled {
+            true => {
+                let log2 = check_block_size(config.blocking.block_size, volume.dims)?;
+                Some(std::sync::Arc::new(BlockTable::build(
+                    &volume,
+                    config.occupancy.kind,
+                    log2,
+                    table.any_visible(0, 0),
+                    |lo, hi| table.any_visible(lo, hi),
+                )))
+            }
+            false => None,
+        };
         Ok(FixedRenderer {
+            blocks,
             ray_range,
             gradients,
             volume,
@@ -270,6 +288,18 @@ impl<'a> FixedRenderer<'a> {
     #[inline(always)]
     pub fn classify_value(&self, pos: [i64; 3], value: SampleValue, light: [i32; 3]) -> [u16; 4] {
         let (pf, wb) = (self.widths.position_frac_bits, self.widths.weight_bits);
+        if let Some(blocks) = &self.blocks {
+            if blocks.slot_at(self.base_voxel(pos)).is_none() {
+                // An inactive block: not in memory, its voxels and gradients read as zero.
+                let rgba = self.table.lookup(0);
+                return match &self.gradients {
+                    Some(_) if rgba[3] != 0 => {
+                        phong_fixed(rgba, [0; 3], light, (1u32 << self.widths.lut_bits) - 1)
+                    }
+                    _ => rgba,
+                };
+            }
+        }
         let density = match value {
             SampleValue::Interpolated => interpolate(&self.volume, pos, pf, wb),
             SampleValue::Region { density, .. } => density,
