@@ -30,5 +30,7 @@ pub mod volume;
 // Ray start and end (issue 15).
 pub mod bricks;
 pub mod clip;
+// Iso-surface mode (issue 15, part 5).
+pub mod iso;
 
 pub use error::{Error, Result};
