@@ -467,3 +467,68 @@ fn iso_mode_shades_the_surface_in_its_colour() {
         "red surface, opaque"
     );
 }
+
+/// `isoN` modes in an experiment file beside the existing ones: the runs carry `[iso]`, the
+/// iso value comes from an axis, each run renders through the one run path, and the existing
+/// modes' runs keep their keys (no `[iso]` in their configuration).
+#[test]
+fn iso_modes_work_in_experiment_files() {
+    use vizsim::experiment::spec::{expand, Mode};
+    const TEXT: &str = r#"
+name = "iso-tiny"
+datasets = ["phantom:metaballs:32"]
+tf = ["class"]
+modes = ["ert+leap8", "ert+iso0", "ert+leap8+iso6"]
+models = ["step", "cycle"]
+[frames]
+orbit = 72
+select = [3]
+size = "24x24"
+[axes]
+"iso.value" = [100.0]
+"#;
+    let e = expand(TEXT, "iso-tiny", None).unwrap();
+    assert_eq!(e.runs.len(), 3 * 2);
+    let volume = phantom("phantom:metaballs:32");
+    let mut images = std::collections::BTreeMap::new();
+    for spec in &e.runs {
+        let iso = &spec.run.hardware.iso;
+        match spec.mode.iso {
+            Some(n) => {
+                assert!(iso.enabled && iso.refinement_steps == n && iso.value == 100.0);
+                assert!(spec.mode.name().ends_with(&format!("iso{n}")));
+            }
+            None => assert!(!iso.enabled),
+        }
+        let prepared = prepare(&spec.run, &volume).unwrap();
+        let report = execute(&spec.run, &prepared, Probes::default()).unwrap();
+        images
+            .entry(spec.mode.name())
+            .or_insert_with(Vec::new)
+            .push(report.frame.pixels);
+    }
+    for (mode, frames) in &images {
+        assert!(frames[0] == frames[1], "{mode}: cycle image == step image");
+    }
+    assert!(images["ert+iso0"] != images["ert+leap8+iso6"]);
+    assert_eq!(
+        Mode::parse("ert+leap8+iso6").unwrap().name(),
+        "ert+leap8+iso6"
+    );
+    for bad in ["iso17", "isox", "iso6+leapvalues"] {
+        assert!(Mode::parse(bad).is_err(), "{bad} accepted");
+    }
+    // The same experiment without iso modes: keys equal those of a file written before `[iso]`.
+    let plain = expand(&TEXT.replace(r#""iso.value" = [100.0]"#, ""), "plain", None).unwrap();
+    let with_iso_axis: Vec<_> = e
+        .runs
+        .iter()
+        .filter(|r| r.mode.iso.is_none())
+        .map(|r| serde_json::to_string(&r.run.hardware).unwrap())
+        .collect();
+    for r in plain.runs.iter().filter(|r| r.mode.iso.is_none()) {
+        let json = serde_json::to_string(&r.run.hardware).unwrap();
+        assert!(!json.contains("\"iso\""), "no [iso] without iso modes");
+    }
+    assert!(with_iso_axis.iter().all(|j| j.contains("\"iso\"")));
+}
