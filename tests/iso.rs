@@ -200,6 +200,12 @@ fn leaping_is_invisible_in_iso_mode() {
                     "occupancy.structure=\"distance\"",
                     "occupancy.kind=\"class\"",
                 ][..],
+                &["bricks.size=8"][..],
+                &[
+                    "occupancy.subcube=4",
+                    "occupancy.kind=\"class\"",
+                    "bricks.size=16",
+                ][..],
             ] {
                 let sets = iso_sets(value, steps, leap);
                 let with = render(&volume, Model::Step, view, 1.0, &sets);
@@ -213,10 +219,40 @@ fn leaping_is_invisible_in_iso_mode() {
                     "{view} {sets:?}"
                 );
                 assert!(w.steps <= p.steps, "{view} {sets:?}: leaping costs steps");
-                if leap[0].starts_with("occupancy.subcube=8") && leap[1].contains("class") {
+                if leap == ["occupancy.subcube=8", "occupancy.kind=\"class\""] {
                     assert!(w.steps < p.steps, "{view} {sets:?}: the map leaps nothing");
                 }
+                if leap.iter().any(|s| s.starts_with("bricks")) {
+                    let cycle = render(&volume, Model::Cycle, view, 1.0, &sets);
+                    assert!(
+                        cycle.frame.pixels == with.frame.pixels,
+                        "{view} {sets:?}: cycle"
+                    );
+                }
             }
+            // The float reference with bricks: the same image (its own brick range).
+            let float = render(
+                &volume,
+                Model::Float,
+                view,
+                1.0,
+                &iso_sets(value, steps, &[]),
+            );
+            let bricks = render(
+                &volume,
+                Model::Float,
+                view,
+                1.0,
+                &iso_sets(value, steps, &["bricks.size=8"]),
+            );
+            assert!(
+                float.frame.pixels == bricks.frame.pixels,
+                "{view}: float bricks"
+            );
+            assert_eq!(
+                float.measurements.refinement_samples,
+                bricks.measurements.refinement_samples
+            );
         }
     }
 }

@@ -379,8 +379,9 @@ impl<'a> FixedRenderer<'a> {
                 ..step
             };
         }
-        if iso.refinement_steps == 0 || pos == ray.start {
-            // No refinement (or no sample before the first): the surface at the hit.
+        if iso.refinement_steps == 0 || (pos == ray.start && !ray.refinable_start) {
+            // No refinement, or no position before the first (outside the box, or cut by
+            // clipping or geometry): the surface at the hit.
             return Step {
                 advance: 1,
                 value: SampleValue::Surface { at: pos },

@@ -134,6 +134,8 @@ impl<'a> FloatRenderer<'a> {
         if let Some((t_enter, t_exit)) = clip_to_box(ray, self.volume.dims) {
             let s = self.settings.sample_spacing;
             let (mut first, mut end) = sample_range(t_enter, t_exit, s);
+            // Iso refinement reaches back to first - 1 when only bricks cut it.
+            let mut refine_from = first;
             if let Some(range) = &self.ray_range {
                 // The same positions as the loop below computes.
                 let l = range.limits(ray, pixel, s, first, end, |k| {
@@ -141,6 +143,7 @@ impl<'a> FloatRenderer<'a> {
                 });
                 record.positions_cut = ((end - first) - (l.end - l.first)) as u32;
                 (first, end, surface) = (l.first, l.end, l.surface);
+                refine_from = l.scene_first;
             }
             record.t_enter = t_enter;
             record.t_exit = t_exit;
@@ -149,7 +152,7 @@ impl<'a> FloatRenderer<'a> {
             record.hit = end > first;
             let threshold = self.settings.ert_threshold.unwrap_or(f32::INFINITY);
             if let Some(iso) = &self.iso {
-                self.march_iso(ray, iso, first, end, &mut acc, &mut record);
+                self.march_iso(ray, iso, (first, refine_from), end, &mut acc, &mut record);
                 return self.finish(acc, record, ray, pixel, surface);
             }
             if let Some(words) = &self.leap_values {
@@ -200,13 +203,14 @@ impl<'a> FloatRenderer<'a> {
     }
 
     /// Iso mode: samples k in first..end until the first whose density is at least the iso
-    /// value; when k > first, `refinement_steps` f32 bisections of t between the sample before
+    /// value; when k > refine_from (k - 1 is in the box and not cut by clipping or geometry;
+    /// bricks may have cut it), `refinement_steps` f32 bisections of t between the sample before
     /// and the hit; the surface colour shaded at the upper end of the interval, opaque.
     fn march_iso(
         &self,
         ray: &Ray,
         iso: &IsoSurface,
-        first: i64,
+        (first, refine_from): (i64, i64),
         end: i64,
         acc: &mut Vec4,
         record: &mut RayRecord,
@@ -220,7 +224,7 @@ impl<'a> FloatRenderer<'a> {
             if self.interpolate(at(hi)) < v {
                 continue;
             }
-            if k > first {
+            if k > refine_from {
                 let mut lo = (k - 1) as f32 * s;
                 for _ in 0..iso.refinement_steps {
                     let mid = 0.5 * (lo + hi);
