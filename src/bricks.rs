@@ -216,6 +216,7 @@ impl FixedRange {
                 let span = fixed_span(map, *shift, fixed.start, fixed.step, fixed.samples as u64);
                 fixed = clamp_relative(fixed, span.first, span.end);
                 fixed.bricks_visited = span.visited;
+                fixed.refinable_start = span.first > 0 && fixed.samples > 0;
             }
         }
         fixed.cut = in_box - fixed.samples;
@@ -253,6 +254,9 @@ pub struct FloatRange {
 /// What the float reference's range gives one ray.
 pub struct FloatLimits {
     pub first: i64,
+    /// The first index after the box and the scene, before bricks: an iso hit at `first`
+    /// refines back to `first - 1` when that is not below this (only bricks cut it).
+    pub scene_first: i64,
     pub end: i64,
     pub surface: Option<SurfaceColour>,
 }
@@ -313,6 +317,7 @@ impl FloatRange {
             end = end.min(l.k_end).max(first);
             surface = l.surface;
         }
+        let scene_first = first;
         if let Some(map) = &self.bricks {
             let s = map.cube_log2;
             let d = self.dims;
@@ -336,6 +341,7 @@ impl FloatRange {
         }
         FloatLimits {
             first,
+            scene_first,
             end,
             surface,
         }

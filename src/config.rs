@@ -52,6 +52,10 @@ pub struct HardwareConfig {
     /// indirection table (docs/model.md, "Blocking"). Written out only when not the default.
     #[serde(default, skip_serializing_if = "BlockingConfig::is_default")]
     pub blocking: BlockingConfig,
+    /// First-hit iso-surface rendering with hitpoint refinement (docs/model.md, "Iso-surface
+    /// mode"). Written out only when on, so existing run keys are unchanged.
+    #[serde(default, skip_serializing_if = "IsoConfig::is_default")]
+    pub iso: IsoConfig,
 }
 
 /// `[blocking]`: the volume memory holds only the active blocks of `block_size`³ voxels, each
@@ -78,9 +82,45 @@ impl Default for BlockingConfig {
     }
 }
 
+/// `[iso]`: first-hit iso-surface mode. A ray stops at its first sample whose density is at
+/// least `value`; the hit is refined by `refinement_steps` bisections between that sample and
+/// the one before it, and shaded there in `colour`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IsoConfig {
+    pub enabled: bool,
+    /// Iso value in the dataset's density units; 0 = half the dataset's largest density.
+    /// Must lie in (smallest, largest] density of the dataset (checked when a run is prepared).
+    pub value: f64,
+    /// Bisection steps between the last two samples, 0..=16 (0 = shade at the first hit).
+    pub refinement_steps: u32,
+    /// Surface colour (RGB 0..=1), Phong-shaded with the headlight.
+    pub colour: [f32; 3],
+}
+
+impl Default for IsoConfig {
+    fn default() -> Self {
+        IsoConfig {
+            enabled: false,
+            value: 0.0,
+            refinement_steps: 6,
+            colour: [0.9, 0.85, 0.75],
+        }
+    }
+}
+
 impl BlockingConfig {
     pub fn is_default(&self) -> bool {
         *self == BlockingConfig::default()
+    }
+}
+
+/// Largest `iso.refinement_steps`.
+pub const MAX_REFINEMENT_STEPS: u32 = 16;
+
+impl IsoConfig {
+    pub fn is_default(&self) -> bool {
+        *self == IsoConfig::default()
     }
 }
 
@@ -800,10 +840,18 @@ impl HardwareConfig {
                 ),
             );
         }
+        if self.iso.enabled {
+            return err(
+                "blocking.enabled",
+                "blocking is not modelled in iso mode (iso.enabled): the block table is built \
+                 from the transfer function's visibility, not from the iso test"
+                    .to_string(),
+            );
+        }
         Ok(())
     }
 
-    /// `[bricks]`, `[clip]` and `[geometry]`.
+    /// `[bricks]`, `[clip]`, `[geometry]` and `[iso]`.
     fn validate_ray_range(&self, source: &str) -> Result<()> {
         let b = &self.bricks;
         if b.size != 0 && !BRICK_SIZES.contains(&b.size) {
@@ -922,12 +970,46 @@ impl HardwareConfig {
                 "is empty; geometry.shape = \"depth-file\" needs a depth image file",
             ));
         }
+        let iso = &self.iso;
+        range(
+            "iso.refinement_steps",
+            iso.refinement_steps as u64,
+            0,
+            MAX_REFINEMENT_STEPS as u64,
+        )?;
+        if !(iso.value.is_finite() && (0.0..=65535.0).contains(&iso.value)) {
+            return Err(Error::config(
+                source,
+                "iso.value",
+                format!(
+                    "{} is out of range; allowed 0 (half the dataset's largest density) or a \
+                     density in (0, 65535]",
+                    iso.value
+                ),
+            ));
+        }
+        if iso.colour.iter().any(|c| !(0.0..=1.0).contains(c)) {
+            return Err(Error::config(
+                source,
+                "iso.colour",
+                format!("{:?}: each component allowed 0..=1", iso.colour),
+            ));
+        }
+        if iso.enabled && self.occupancy.structure == LeapStructure::LeapValues {
+            return Err(Error::config(
+                source,
+                "iso.enabled",
+                "true needs occupancy.structure = \"map\" or \"distance\"; leap values in \
+                 the volume are not supported in iso mode"
+                    .to_string(),
+            ));
+        }
         Ok(())
     }
 }
 
-/// Adds the optional sections (`[bricks]`, `[clip]`, `[geometry]`) with their defaults where a
-/// table lacks them, and their missing fields (they are not written out when off).
+/// Adds the optional sections (`[bricks]`, `[clip]`, `[geometry]`, `[iso]`) with their defaults
+/// where a table lacks them, and their missing fields (they are not written out when off).
 fn insert_default_sections(table: &mut toml::Table) {
     // `ray.interleave` is written out only when not 1.
     if let Some(toml::Value::Table(ray)) = table.get_mut("ray") {
@@ -938,6 +1020,7 @@ fn insert_default_sections(table: &mut toml::Table) {
         ("clip", toml::Table::try_from(ClipConfig::default())),
         ("geometry", toml::Table::try_from(GeometryConfig::default())),
         ("blocking", toml::Table::try_from(BlockingConfig::default())),
+        ("iso", toml::Table::try_from(IsoConfig::default())),
     ] {
         let Ok(default) = default else { continue };
         match table.get_mut(name) {

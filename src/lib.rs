@@ -33,5 +33,7 @@ pub mod blocking;
 pub mod bricks;
 pub mod budget;
 pub mod clip;
+// Iso-surface mode (issue 15, part 5).
+pub mod iso;
 
 pub use error::{Error, Result};

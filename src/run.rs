@@ -278,7 +278,11 @@ pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<
                 )?;
                 renderer = renderer.with_leap_values(words);
             }
-            Renderer::Float(Box::new(renderer.with_ray_range(&run.hardware)?))
+            Renderer::Float(Box::new(
+                renderer
+                    .with_iso(&run.hardware)?
+                    .with_ray_range(&run.hardware)?,
+            ))
         }
         Model::Step | Model::Cycle => {
             let sdram = run.model == Model::Cycle && run.memory == Memory::Sdram;
@@ -406,6 +410,9 @@ pub struct Measurements {
     /// Samples followed by a leap (`skip.policy = "sample-then-leap"`); included in `samples`.
     pub leap_samples: u64,
     pub rays_terminated_early: u64,
+    /// Iso mode: samples refining hits (included in `samples`); not written out when 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub refinement_samples: u64,
     /// Cycle model: clock cycles of the frame.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cycles: Option<u64>,
@@ -568,6 +575,7 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         leaps: stats.leaps,
         leap_samples: stats.leap_samples,
         rays_terminated_early: stats.rays_terminated_early,
+        refinement_samples: stats.refinement_samples,
         ..Measurements::default()
     };
     let frame_time_ns = match (run.model, &pipeline) {
@@ -585,6 +593,7 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         m.samples = s.samples;
         m.leaps = s.leaps;
         m.leap_samples = s.leap_samples;
+        m.refinement_samples = s.refinement_samples;
         m.rays_terminated_early = s.rays_terminated_early;
         m.discarded_after_ert = Some(s.discarded_after_ert);
         m.stall_cycles = Some(s.stall_cycles);
@@ -636,6 +645,10 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         measurements: m,
         frame,
     })
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 /// Whether any of `[bricks]`, `[clip]`, `[geometry]` is on.

@@ -163,6 +163,7 @@ pub fn mode_label(mode: &str) -> String {
     let mut structure = None;
     let mut bricks = None;
     let mut table = false;
+    let mut iso = None;
     for token in mode.split('+') {
         match token {
             "ert" => ert = true,
@@ -180,6 +181,7 @@ pub fn mode_label(mode: &str) -> String {
                 bricks = Some(t.trim_start_matches("bricks").to_string())
             }
             "table" => table = true,
+            t if t.starts_with("iso") => iso = Some(t.trim_start_matches("iso").to_string()),
             _ => return mode.to_string(),
         }
     }
@@ -194,9 +196,14 @@ pub fn mode_label(mode: &str) -> String {
         ),
     };
     // Bounding bricks come on top of any structure: `ERT+bricks8`, `8³+bricks16 (table)`.
-    match bricks {
+    let label = match bricks {
         Some(n) => format!("{base}+bricks{n}{}", if table { " (table)" } else { "" }),
         None => base,
+    };
+    // Iso mode on top of everything: `8³, iso (6 ref.)`.
+    match iso {
+        Some(n) => format!("{label}, iso ({n} ref.)"),
+        None => label,
     }
 }
 
@@ -550,6 +557,8 @@ mod tests {
                 "LV-h"
             ]
         );
+        assert_eq!(mode_label("ert+leap8+iso6"), "8³, iso (6 ref.)");
+        assert_eq!(mode_label("ert+iso0"), "ERT, iso (0 ref.)");
         // `modes` is listed in table order: a reversed copy sorts back into it.
         let mut sorted = modes.to_vec();
         sorted.reverse();

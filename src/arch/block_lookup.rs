@@ -105,6 +105,10 @@ impl<M: VoxelMemory> VoxelMemory for BlockLookup<M> {
         }
     }
 
+    fn longest_legal_wait(&self) -> u64 {
+        self.inner.longest_legal_wait() + self.latency
+    }
+
     fn stats_json(&self) -> serde_json::Value {
         let mut json = self.inner.stats_json();
         if let Some(object) = json.as_object_mut() {

@@ -73,6 +73,9 @@ pub struct CycleStats {
     pub leaps: u64,
     /// Samples followed by a leap (`skip.policy = "sample-then-leap"`); included in `samples`.
     pub leap_samples: u64,
+    /// Iso mode: refinement samples (included in `samples`; not written out when 0).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub refinement_samples: u64,
     /// One-word reads of the distance volume (one per position a ray reaches; distance-volume
     /// leaping only; not written out when 0).
     #[serde(skip_serializing_if = "is_zero")]
@@ -369,8 +372,9 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
                 slot.pos = update.pos;
                 slot.k = update.k;
                 slot.busy = false;
-                // With a structure in volume memory, the new position's word is read first.
-                if !slot.finished() {
+                // With a structure in volume memory, the new position's word is read first
+                // (not at an iso refinement midpoint: the ray samples it whatever the word).
+                if !slot.finished() && slot.state.bisection.is_none() {
                     if let Some(voxel) = skipper.memory_word(slot.pos) {
                         slot.busy = true;
                         waiting_words += 1;
@@ -689,9 +693,7 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
     // The same step the functional model takes at this position (sample or not, advance);
     // the ray's state changes only if the step issues.
     let mut state = slot.state;
-    let step = skipper
-        .decide(slot.pos, &slot.ray, &mut state)
-        .within(remaining);
+    let step = renderer.step(skipper, slot.pos, &slot.ray, &mut state, remaining);
     let mut held_tag = None;
     if step.sample {
         if buffer.is_full() {
@@ -716,12 +718,18 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
     stats.samples += step.sample as u64;
     stats.leaps += !step.sample as u64;
     stats.leap_samples += step.is_leap_sample() as u64;
+    stats.refinement_samples += step.refinement as u64;
     // The skip unit carries P + advance·V back (a leap after a sample included) after its
-    // latency, exactly as for any other step.
-    let (new_k, new_pos) = (
-        slot.k + step.advance,
-        add_steps(slot.pos, slot.ray.step, step.advance),
-    );
+    // latency, exactly as for any other step; in iso mode a bisection midpoint instead, or the
+    // end of the ray once its surface is found.
+    let new_k = if step.ends_ray {
+        slot.ray.samples as u64
+    } else {
+        slot.k + step.advance
+    };
+    let new_pos = step
+        .next
+        .unwrap_or_else(|| add_steps(slot.pos, slot.ray.step, step.advance));
     stats.steps += 1;
     slot.busy = true;
     let update = PositionUpdate {

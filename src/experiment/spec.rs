@@ -30,7 +30,8 @@ pub struct ExperimentFile {
     #[serde(default = "default_tf")]
     pub tf: Vec<String>,
     /// Acceleration modes: `none`, or `+`-joined `ert`, `leapN`, `hier`, `distanceN`,
-    /// `leapvalues`, `leapvalues-homogeneous`.
+    /// `leapvalues`, `leapvalues-homogeneous`, `bricksN`, `table`, `isoN` (iso-surface mode
+    /// with N refinement steps; the iso value from the configuration or an `iso.value` axis).
     pub modes: Vec<String>,
     /// `step` (functional model, counts steps) and/or `cycle` (cycle-accurate with SDRAM).
     pub models: Vec<String>,
@@ -101,6 +102,10 @@ pub struct Mode {
     pub bricks: usize,
     #[serde(skip_serializing_if = "is_false")]
     pub brick_table: bool,
+    /// Iso-surface mode with this many refinement steps (`isoN`), None = off. Serialised only
+    /// when set.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub iso: Option<u32>,
 }
 
 fn is_zero(n: &u32) -> bool {
@@ -125,6 +130,7 @@ impl Mode {
             leap_values: None,
             bricks: 0,
             brick_table: false,
+            iso: None,
         };
         if text == "none" {
             return Ok(mode);
@@ -150,6 +156,18 @@ impl Mode {
                     mode.distance_bits = n;
                 }
                 "table" => mode.brick_table = true,
+                t if t.starts_with("iso") => {
+                    let n: u32 = t[3..].parse().map_err(|_| {
+                        format!("`{t}`: expected isoN, N the refinement steps (iso0 = none)")
+                    })?;
+                    if n > config::MAX_REFINEMENT_STEPS {
+                        return Err(format!(
+                            "`{t}`: refinement steps must be 0..={}",
+                            config::MAX_REFINEMENT_STEPS
+                        ));
+                    }
+                    mode.iso = Some(n);
+                }
                 t if t.starts_with("bricks") => {
                     let n: usize = t[6..]
                         .parse()
@@ -176,7 +194,8 @@ impl Mode {
                 t => {
                     return Err(format!(
                     "unknown token `{t}`; modes are `none` or `+`-joined `ert`, `leapN`, `hier`, \
-                         `distanceN`, `leapvalues`, `leapvalues-homogeneous`, `bricksN`, `table`"
+                         `distanceN`, `leapvalues`, `leapvalues-homogeneous`, `bricksN`, `table`, \
+                         `isoN`"
                 ))
                 }
             }
@@ -195,6 +214,9 @@ impl Mode {
         }
         if mode.brick_table && mode.bricks == 0 {
             return Err("`table` needs `bricksN`".into());
+        }
+        if mode.iso.is_some() && mode.leap_values.is_some() {
+            return Err("`isoN` does not work with `leapvalues`".into());
         }
         Ok(mode)
     }
@@ -224,6 +246,9 @@ impl Mode {
         }
         if self.brick_table {
             parts.push("table".into());
+        }
+        if let Some(n) = self.iso {
+            parts.push(format!("iso{n}"));
         }
         if parts.is_empty() {
             "none".into()
@@ -296,7 +321,7 @@ pub const MAX_RUNS: u64 = 200_000;
 const BYTES_PER_RUN: u64 = 4096;
 
 /// Configuration fields a mode or the tf axis sets.
-const MODE_FIELDS: [&str; 9] = [
+const MODE_FIELDS: [&str; 11] = [
     "compositing.ert",
     "occupancy.subcube",
     "occupancy.hierarchy",
@@ -306,6 +331,8 @@ const MODE_FIELDS: [&str; 9] = [
     "leap_values.regions",
     "bricks.size",
     "bricks.setup",
+    "iso.enabled",
+    "iso.refinement_steps",
 ];
 
 /// Reads and expands an experiment file.
@@ -617,6 +644,12 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
                                 });
                                 continue;
                             }
+                        }
+                        // Iso mode: set here too; the iso value comes from the base file or
+                        // an `iso.value` axis.
+                        if let Some(n) = mode.iso {
+                            config.iso.enabled = true;
+                            config.iso.refinement_steps = n;
                         }
                         let mut fits = true;
                         if mode.subcube > 0 {

@@ -64,11 +64,33 @@ impl Neighbourhood {
 /// rounded to nearest once at the end — the classification table's index.
 #[inline(always)]
 pub fn interpolate(volume: &Volume, pos: [i64; 3], pf: u32, wb: u32) -> u16 {
-    let n = Neighbourhood::new(volume.dims, pos, pf, wb);
-    let data = &volume.data;
-    let sum = n.weighted_sum(|i| data[i] as i64);
+    let sum = interpolate_exact(volume, pos, pf, wb);
     let shift = 3 * wb;
     ((sum + (1i64 << (shift - 1))) >> shift) as u16
+}
+
+/// The exact trilinear weighted sum at a fixed-point position (3·wb fraction bits), before
+/// `interpolate` rounds it: what the iso comparator tests.
+#[inline(always)]
+pub fn interpolate_exact(volume: &Volume, pos: [i64; 3], pf: u32, wb: u32) -> i64 {
+    let n = Neighbourhood::new(volume.dims, pos, pf, wb);
+    let data = &volume.data;
+    n.weighted_sum(|i| data[i] as i64)
+}
+
+/// The iso comparator's threshold for iso value `value` (density units): ceil(value·2^(3·wb)),
+/// so that `interpolate_exact(..) >= threshold` exactly when the exact interpolated density
+/// is at least `value` (the weighted sum is an integer).
+pub fn iso_threshold(value: f64, wb: u32) -> i64 {
+    (value * (1u64 << (3 * wb)) as f64).ceil() as i64
+}
+
+/// The bisection midpoint of two fixed-point positions: floor((a + b) / 2) per component (an
+/// arithmetic shift). It lies between a and b on every axis (inclusive), so a refined hit
+/// never leaves the box spanned by the two samples it refines.
+#[inline(always)]
+pub fn midpoint(a: [i64; 3], b: [i64; 3]) -> [i64; 3] {
+    [0, 1, 2].map(|i| (a[i] + b[i]) >> 1)
 }
 
 /// The classification lookup table: one RGBA entry per density, each component `bits` wide,
@@ -109,6 +131,36 @@ impl ClassificationTable {
     #[inline(always)]
     pub fn lookup(&self, density: u16) -> [u16; 4] {
         self.entries[density as usize]
+    }
+
+    /// The iso mode's table: opacity 0 below density `first_opaque`, full opacity (colour
+    /// `colour`) from it on. Only the leaping structures and the bricks read it (their
+    /// emptiness test: a cell whose largest voxel is below the iso value is empty); the
+    /// iso comparator and the surface colour do not go through the table.
+    pub fn iso(first_opaque: usize, colour: [f32; 3], densities: usize, bits: u32) -> Self {
+        let unit = ((1u32 << bits) - 1) as f32;
+        let entries: Vec<[u16; 4]> = (0..densities)
+            .map(|i| {
+                if i >= first_opaque {
+                    let c = colour.map(|c| (c * unit).round() as u16);
+                    [c[0], c[1], c[2], unit as u16]
+                } else {
+                    [0; 4]
+                }
+            })
+            .collect();
+        let mut visible_prefix = Vec::with_capacity(densities + 1);
+        visible_prefix.push(0);
+        let mut count = 0u32;
+        for e in &entries {
+            count += (e[3] > 0) as u32;
+            visible_prefix.push(count);
+        }
+        ClassificationTable {
+            bits,
+            entries,
+            visible_prefix,
+        }
     }
 
     /// Whether any density in [lo, hi] has non-zero opacity in the table: the exact emptiness

@@ -22,6 +22,12 @@ pub enum SampleValue {
     /// A region's value (nearest-neighbour or a leap over a homogeneous region), composited
     /// over `steps` sample positions: opacity 1 - (1 - a)^steps (leap values, homogeneous).
     Region { density: u16, steps: u32 },
+    /// Iso mode: a sample read only to test it against the iso value (a marching sample or a
+    /// refinement sample); it composites nothing.
+    Probe,
+    /// Iso mode: the hit, composited opaque in the iso colour, shaded at this (refined)
+    /// position.
+    Surface { at: [i64; 3] },
 }
 
 impl SampleValue {
@@ -31,6 +37,7 @@ impl SampleValue {
         match self {
             SampleValue::Interpolated => 1,
             SampleValue::Region { steps, .. } => steps as u64,
+            SampleValue::Probe | SampleValue::Surface { .. } => 1,
         }
     }
 }
@@ -41,6 +48,17 @@ impl SampleValue {
 pub struct SkipState {
     /// Region mode M(m): Some(m); trilinear mode T: None.
     pub region: Option<u16>,
+    /// Iso mode: the bisection interval while the ray refines its hit.
+    pub bisection: Option<Bisection>,
+}
+
+/// Iso hitpoint refinement of one ray: the density at `lo` is below the iso value, at `hi`
+/// at or above it; `left` refinement samples remain.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Bisection {
+    pub lo: [i64; 3],
+    pub hi: [i64; 3],
+    pub left: u32,
 }
 
 /// One issue slot of a ray: sample or not, then advance. Every step costs one slot, whatever
@@ -56,6 +74,13 @@ pub struct Step {
     /// The advance is read from this sample's own words (leap values): in the cycle model the
     /// ray may not issue again until they are back from memory.
     pub waits_for_words: bool,
+    /// Iso refinement: the ray's next position is this bisection midpoint instead of
+    /// P + advance·V (its sample index stays).
+    pub next: Option<[i64; 3]>,
+    /// Iso mode: the ray ends after this step (its surface is found).
+    pub ends_ray: bool,
+    /// Iso mode: a refinement sample (counted in `RayRecord::refinement_samples` too).
+    pub refinement: bool,
 }
 
 impl Step {
@@ -65,6 +90,9 @@ impl Step {
         advance: 1,
         value: SampleValue::Interpolated,
         waits_for_words: false,
+        next: None,
+        ends_ray: false,
+        refinement: false,
     };
 
     /// The step at a position in an empty sub-cube whose leap is `n` >= 1 positions: the skip
@@ -97,10 +125,11 @@ impl Step {
         }
     }
 
-    /// Positions passed over without a sample.
+    /// Positions passed over without a sample (none by an iso refinement step, which
+    /// advances 0).
     #[inline(always)]
     pub fn skipped(self) -> u64 {
-        self.advance - self.sample as u64
+        self.advance.saturating_sub(self.sample as u64)
     }
 
     /// A sample followed by a leap (sample-then-leap in an empty sub-cube).
@@ -117,6 +146,7 @@ impl Step {
         r.leaps += !self.sample as u32;
         r.skipped += self.skipped() as u32;
         r.leap_samples += self.is_leap_sample() as u32;
+        r.refinement_samples += self.refinement as u32;
     }
 }
 
@@ -354,6 +384,7 @@ impl SpaceSkipper for LeapValueLeaping<'_> {
                     advance: steps as u64,
                     value: SampleValue::Region { density, steps },
                     waits_for_words: true,
+                    ..Step::SAMPLE
                 }
             }
         }

@@ -3,12 +3,15 @@
 //! the fixed-point arithmetic of `arith`. It counts steps (samples + leaps, one issue slot
 //! each); the published cost is one step per 12.5 ns (`clock.step_time_ns`).
 
-use super::arith::{interpolate, Accumulator, ClassificationTable, Compositor, Neighbourhood};
+use super::arith::{
+    interpolate, interpolate_exact, iso_threshold, midpoint, Accumulator, ClassificationTable,
+    Compositor, Neighbourhood,
+};
 use std::borrow::Cow;
 
 use super::leaping::{
-    ConfiguredSkipper, DistanceLeaping, LeapValueLeaping, NoSkipping, OccupancyLeaping,
-    SampleValue, SkipState, SpaceSkipper,
+    Bisection, ConfiguredSkipper, DistanceLeaping, LeapValueLeaping, NoSkipping, OccupancyLeaping,
+    SampleValue, SkipState, SpaceSkipper, Step,
 };
 use super::setup::{check_widths, setup_ray, FixedRay};
 use super::Widths;
@@ -17,6 +20,7 @@ use crate::bricks::FixedRange;
 use crate::camera::Camera;
 use crate::config::{HardwareConfig, LeapRegions, LeapStructure, SkipPolicy};
 use crate::error::Result;
+use crate::iso::IsoSurface;
 use crate::leapvalues::distance::{distance_volume, DistanceVolume};
 use crate::leapvalues::LeapValueVolume;
 use crate::occupancy::{check_subcube_size, OccupancyKind, OccupancyMap};
@@ -93,6 +97,12 @@ pub struct FixedRenderer<'a> {
     /// 2-way blocking (`[blocking]`): the indirection table; a sample whose lower corner lies
     /// in an inactive block reads zero voxels and gradients.
     pub blocks: Option<std::sync::Arc<BlockTable>>,
+    /// Iso-surface mode (`[iso]`); None when off.
+    pub iso: Option<IsoSurface>,
+    /// Iso mode: the comparator's threshold on the exact interpolation sum
+    /// (`arith::iso_threshold`) and the surface's table-format RGBA (opacity 1).
+    iso_threshold: i64,
+    iso_rgba: [u16; 4],
 }
 
 impl<'a> FixedRenderer<'a> {
@@ -108,12 +118,29 @@ impl<'a> FixedRenderer<'a> {
         settings.validate()?;
         let widths = Widths::from_config(config);
         check_widths(&widths, volume.dims, settings.sample_spacing)?;
-        let table = ClassificationTable::build(
-            tf,
-            volume.max_value() as usize + 1,
-            widths.lut_bits,
-            settings.sample_spacing,
-        );
+        let iso = IsoSurface::from_config(config, volume)?;
+        // In iso mode the table only feeds the leaping structures and bricks: opacity 0 below
+        // the iso value, 1 at and above it.
+        let table = match &iso {
+            Some(iso) => ClassificationTable::iso(
+                iso.first_opaque(),
+                iso.colour,
+                volume.max_value() as usize + 1,
+                widths.lut_bits,
+            ),
+            None => ClassificationTable::build(
+                tf,
+                volume.max_value() as usize + 1,
+                widths.lut_bits,
+                settings.sample_spacing,
+            ),
+        };
+        let lut_unit = (1u32 << widths.lut_bits) - 1;
+        let iso_rgba = iso.map_or([0; 4], |iso| {
+            let c = iso.colour.map(|c| (c * lut_unit as f32).round() as u16);
+            [c[0], c[1], c[2], lut_unit as u16]
+        });
+        let iso_threshold = iso.map_or(0, |iso| iso_threshold(iso.value, widths.weight_bits));
         let compositor = Compositor::new(
             widths.accumulator_bits,
             widths.lut_bits,
@@ -171,8 +198,8 @@ impl<'a> FixedRenderer<'a> {
             Some(densities) => Cow::Owned(densities),
             None => Cow::Borrowed(volume),
         };
-        let gradients = settings
-            .shading
+        // The iso surface is always shaded.
+        let gradients = (settings.shading || iso.is_some())
             .then(|| GradientVolume::build(&volume, config.shading.gradient_bits));
         // Bricks are built from the volume the renderer samples (the density fields with
         // homogeneous leap values).
@@ -199,6 +226,9 @@ impl<'a> FixedRenderer<'a> {
         Ok(FixedRenderer {
             blocks,
             ray_range,
+            iso,
+            iso_threshold,
+            iso_rgba,
             gradients,
             volume,
             leap_values,
@@ -300,11 +330,15 @@ impl<'a> FixedRenderer<'a> {
                 };
             }
         }
-        let density = match value {
-            SampleValue::Interpolated => interpolate(&self.volume, pos, pf, wb),
-            SampleValue::Region { density, .. } => density,
+        let (rgba, pos) = match value {
+            SampleValue::Interpolated => (
+                self.table.lookup(interpolate(&self.volume, pos, pf, wb)),
+                pos,
+            ),
+            SampleValue::Region { density, .. } => (self.table.lookup(density), pos),
+            SampleValue::Probe => return [0; 4],
+            SampleValue::Surface { at } => (self.iso_rgba, at),
         };
-        let rgba = self.table.lookup(density);
         match &self.gradients {
             Some(gradients) if rgba[3] != 0 => {
                 let n = Neighbourhood::new(self.volume.dims, pos, pf, wb);
@@ -315,8 +349,94 @@ impl<'a> FixedRenderer<'a> {
         }
     }
 
-    /// Marches one ray: at each position the skipper's step (sample or not, then advance),
-    /// until the last position or ERT.
+    /// The step of a ray at `pos` with `remaining` (>= 1) positions left: the skipper's step
+    /// (limited to them), and in iso mode the iso comparator's part (docs/model.md, "Iso-surface
+    /// mode"): a sample below the iso value composites nothing; the first at or above it is the
+    /// hit, which ends the ray or, when the position before it is the ray's too and refinement
+    /// is on, starts the bisection between the two; each refinement sample halves the interval
+    /// and the last composites the surface at its upper end. Hits and refinement samples wait
+    /// for their words (the next position depends on them). Both models take steps through here.
+    #[inline(always)]
+    pub fn step<S: SpaceSkipper>(
+        &self,
+        skipper: &S,
+        pos: [i64; 3],
+        ray: &FixedRay,
+        state: &mut SkipState,
+        remaining: u64,
+    ) -> Step {
+        let Some(iso) = &self.iso else {
+            return skipper.decide(pos, ray, state).within(remaining);
+        };
+        let (pf, wb) = (self.widths.position_frac_bits, self.widths.weight_bits);
+        let hit = |p: [i64; 3]| interpolate_exact(&self.volume, p, pf, wb) >= self.iso_threshold;
+        if let Some(mut b) = state.bisection {
+            // A refinement sample at the midpoint of the interval.
+            if hit(pos) {
+                b.hi = pos;
+            } else {
+                b.lo = pos;
+            }
+            b.left -= 1;
+            let refinement = Step {
+                advance: 0,
+                refinement: true,
+                ..Step::SAMPLE
+            };
+            if b.left == 0 {
+                state.bisection = None;
+                return Step {
+                    value: SampleValue::Surface { at: b.hi },
+                    ends_ray: true,
+                    ..refinement
+                };
+            }
+            state.bisection = Some(b);
+            return Step {
+                value: SampleValue::Probe,
+                waits_for_words: true,
+                next: Some(midpoint(b.lo, b.hi)),
+                ..refinement
+            };
+        }
+        let step = skipper.decide(pos, ray, state).within(remaining);
+        if !step.sample {
+            return step;
+        }
+        if !hit(pos) {
+            return Step {
+                value: SampleValue::Probe,
+                ..step
+            };
+        }
+        if iso.refinement_steps == 0 || (pos == ray.start && !ray.refinable_start) {
+            // No refinement, or no position before the first (outside the box, or cut by
+            // clipping or geometry): the surface at the hit.
+            return Step {
+                advance: 1,
+                value: SampleValue::Surface { at: pos },
+                waits_for_words: true,
+                ends_ray: true,
+                ..Step::SAMPLE
+            };
+        }
+        let lo = [0, 1, 2].map(|a| pos[a] - ray.step[a]);
+        state.bisection = Some(Bisection {
+            lo,
+            hi: pos,
+            left: iso.refinement_steps,
+        });
+        Step {
+            advance: 0,
+            value: SampleValue::Probe,
+            waits_for_words: true,
+            next: Some(midpoint(lo, pos)),
+            ..Step::SAMPLE
+        }
+    }
+
+    /// Marches one ray: at each position the step (sample or not, then advance), until the
+    /// last position, ERT or (iso mode) the refined surface.
     pub fn cast<S: SpaceSkipper>(&self, ray: &FixedRay, skipper: &S) -> ([u8; 4], RayRecord) {
         let mut record = RayRecord {
             hit: ray.samples > 0,
@@ -330,7 +450,7 @@ impl<'a> FixedRenderer<'a> {
         let mut k: u64 = 0;
         let n = ray.samples as u64;
         while k < n {
-            let step = skipper.decide(pos, ray, &mut state).within(n - k);
+            let step = self.step(skipper, pos, ray, &mut state, n - k);
             step.record(&mut record);
             if step.sample
                 && self.compositor.composite_steps(
@@ -343,6 +463,13 @@ impl<'a> FixedRenderer<'a> {
                 // cycle model counts).
                 record.terminated_early = k + step.value.steps() < n;
                 break;
+            }
+            if step.ends_ray {
+                break;
+            }
+            if let Some(next) = step.next {
+                pos = next;
+                continue;
             }
             k += step.advance;
             for a in 0..3 {

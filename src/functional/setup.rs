@@ -39,6 +39,9 @@ pub struct FixedRay {
     /// The opaque surface behind the volume in this pixel (accumulator units, composited
     /// instead of the background); None without geometry there.
     pub surface: Option<[u32; 4]>,
+    /// The position before `start` is a position of the ray that only bricks cut (so below
+    /// any iso value): an iso hit at `start` refines back to it as it would without bricks.
+    pub refinable_start: bool,
 }
 
 /// Checks that the widths can represent positions inside this volume and increments at this
@@ -87,6 +90,7 @@ pub fn setup_ray(ray: &Ray, dims: [usize; 3], spacing: f32, widths: &Widths) -> 
         cut: 0,
         bricks_visited: 0,
         surface: None,
+        refinable_start: false,
     };
     let Some((t_enter, t_exit)) = clip_to_box(ray, dims) else {
         return miss;

@@ -20,6 +20,7 @@ use crate::camera::interleave_ray;
 use crate::camera::{Camera, Ray};
 use crate::config::{HardwareConfig, LeapRegions};
 use crate::error::Result;
+use crate::iso::IsoSurface;
 use crate::leapvalues::LeapValueVolume;
 use crate::shading::{phong_float, voxel_gradient};
 use crate::transfer::{correct_opacity, TransferFunction};
@@ -39,6 +40,8 @@ pub struct FloatRenderer<'a> {
     /// model (lossy by design). Empty-region leaping only skips zero-opacity samples, so the
     /// reference does not need it.
     leap_values: Option<LeapValueVolume>,
+    /// Iso-surface mode (`[iso]`): first hit, f32 bisection, shaded surface.
+    iso: Option<IsoSurface>,
 }
 
 impl<'a> FloatRenderer<'a> {
@@ -61,7 +64,27 @@ impl<'a> FloatRenderer<'a> {
             settings: settings.clone(),
             ray_range: None,
             leap_values: None,
+            iso: None,
         })
+    }
+
+    /// Adds the configuration's iso-surface mode (`[iso]`), when on; before
+    /// `with_ray_range`, so that bricks see the iso table (opacity 0 below the iso value, 1 at
+    /// and above it).
+    pub fn with_iso(mut self, config: &HardwareConfig) -> Result<Self> {
+        self.iso = IsoSurface::from_config(config, &self.volume)?;
+        if let Some(iso) = &self.iso {
+            let first = iso.first_opaque();
+            let c = iso.colour;
+            for (i, e) in self.table.iter_mut().enumerate() {
+                *e = if i >= first {
+                    Vec4::new(c[0], c[1], c[2], 1.0)
+                } else {
+                    Vec4::ZERO
+                };
+            }
+        }
+        Ok(self)
     }
 
     /// Adds the configuration's ray start and end (`[bricks]`, `[clip]`, `[geometry]`); after
@@ -111,6 +134,8 @@ impl<'a> FloatRenderer<'a> {
         if let Some((t_enter, t_exit)) = clip_to_box(ray, self.volume.dims) {
             let s = self.settings.sample_spacing;
             let (mut first, mut end) = sample_range(t_enter, t_exit, s);
+            // Iso refinement reaches back to first - 1 when only bricks cut it.
+            let mut refine_from = first;
             if let Some(range) = &self.ray_range {
                 // The same positions as the loop below computes.
                 let l = range.limits(ray, pixel, s, first, end, |k| {
@@ -118,6 +143,7 @@ impl<'a> FloatRenderer<'a> {
                 });
                 record.positions_cut = ((end - first) - (l.end - l.first)) as u32;
                 (first, end, surface) = (l.first, l.end, l.surface);
+                refine_from = l.scene_first;
             }
             record.t_enter = t_enter;
             record.t_exit = t_exit;
@@ -125,6 +151,10 @@ impl<'a> FloatRenderer<'a> {
             record.end_sample = end;
             record.hit = end > first;
             let threshold = self.settings.ert_threshold.unwrap_or(f32::INFINITY);
+            if let Some(iso) = &self.iso {
+                self.march_iso(ray, iso, (first, refine_from), end, &mut acc, &mut record);
+                return self.finish(acc, record, ray, pixel, surface);
+            }
             if let Some(words) = &self.leap_values {
                 self.march_regions(ray, words, first, end, &mut acc, &mut record);
                 return self.finish(acc, record, ray, pixel, surface);
@@ -170,6 +200,75 @@ impl<'a> FloatRenderer<'a> {
             [to_u8(out.x), to_u8(out.y), to_u8(out.z), to_u8(out.w)],
             record,
         )
+    }
+
+    /// Iso mode: samples k in first..end until the first whose density is at least the iso
+    /// value; when k > refine_from (k - 1 is in the box and not cut by clipping or geometry;
+    /// bricks may have cut it), `refinement_steps` f32 bisections of t between the sample before
+    /// and the hit; the surface colour shaded at the upper end of the interval, opaque.
+    fn march_iso(
+        &self,
+        ray: &Ray,
+        iso: &IsoSurface,
+        (first, refine_from): (i64, i64),
+        end: i64,
+        acc: &mut Vec4,
+        record: &mut RayRecord,
+    ) {
+        let s = self.settings.sample_spacing;
+        let v = iso.value as f32;
+        let at = |t: f32| ray.origin + ray.dir * t;
+        for k in first..end {
+            let mut hi = k as f32 * s;
+            record.samples += 1;
+            if self.interpolate(at(hi)) < v {
+                continue;
+            }
+            if k > refine_from {
+                let mut lo = (k - 1) as f32 * s;
+                for _ in 0..iso.refinement_steps {
+                    let mid = 0.5 * (lo + hi);
+                    record.samples += 1;
+                    record.refinement_samples += 1;
+                    if self.interpolate(at(mid)) >= v {
+                        hi = mid;
+                    } else {
+                        lo = mid;
+                    }
+                }
+            }
+            let (diffuse, specular) = self.phong(at(hi), ray.dir);
+            let lit = (glam::Vec3::from_array(iso.colour) * diffuse + glam::Vec3::splat(specular))
+                .min(glam::Vec3::ONE);
+            *acc = lit.extend(1.0);
+            record.terminated_early = self.settings.ert_threshold.is_some() && k + 1 < end;
+            return;
+        }
+    }
+
+    /// The iso hit of a ray at sample index `k` refined as `march_iso` does: its ray parameter
+    /// t (for tests: it lies in [(k - 1)·S, k·S]). None when the sample at k is below the value.
+    pub fn iso_hit_t(&self, ray: &Ray, k: i64, first: i64) -> Option<f32> {
+        let iso = self.iso.as_ref()?;
+        let s = self.settings.sample_spacing;
+        let v = iso.value as f32;
+        let at = |t: f32| ray.origin + ray.dir * t;
+        let mut hi = k as f32 * s;
+        if self.interpolate(at(hi)) < v {
+            return None;
+        }
+        if k > first {
+            let mut lo = (k - 1) as f32 * s;
+            for _ in 0..iso.refinement_steps {
+                let mid = 0.5 * (lo + hi);
+                if self.interpolate(at(mid)) >= v {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+        }
+        Some(hi)
     }
 
     /// Samples k in first..end with homogeneous leap values: the fixed-point model's region

@@ -101,6 +101,10 @@ pub struct RayRecord {
     /// geometry) removed; `first_sample..end_sample` is what remains. Not written when 0.
     #[serde(skip_serializing_if = "is_zero")]
     pub positions_cut: u32,
+    /// Iso mode: bisection samples refining the ray's hit (included in `samples`). Not
+    /// written when 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub refinement_samples: u32,
 }
 
 fn is_zero(n: &u32) -> bool {
@@ -119,6 +123,13 @@ pub struct FrameStats {
     /// Samples followed by a leap (sample-then-leap); included in `samples`.
     pub leap_samples: u64,
     pub rays_terminated_early: u64,
+    /// Iso mode: refinement samples (included in `samples`). Not written when 0.
+    #[serde(skip_serializing_if = "is_zero_u64")]
+    pub refinement_samples: u64,
+}
+
+fn is_zero_u64(n: &u64) -> bool {
+    *n == 0
 }
 
 impl FrameStats {
@@ -140,6 +151,7 @@ impl FrameStats {
             s.skipped += r.skipped as u64;
             s.leap_samples += r.leap_samples as u64;
             s.rays_terminated_early += r.terminated_early as u64;
+            s.refinement_samples += r.refinement_samples as u64;
         }
         s
     }
