@@ -33,6 +33,9 @@ install_missing() {
         tail -n 5 "$DIR/apt.log" >&2
         cannot "apt-get could not install ${missing[*]} (log: $DIR/apt.log)"
     fi
+    for c in slurmctld slurmd sbatch munged; do
+        command -v "$c" >/dev/null || cannot "$c is still missing after apt-get install ${missing[*]}"
+    done
 }
 
 pid_of() { [ -s "$DIR/$1.pid" ] && cat "$DIR/$1.pid" || true; }
