@@ -151,6 +151,7 @@ rc=$?
 set -e
 if [ $rc -eq 0 ]; then
     SLURM_UP=1
+    sed 's/^/cluster-test: /' slurm-up.log
     export SLURM_CONF=$VIZSIM_SLURM_DIR/slurm.conf
     if slurm_clean; then PASSED=$((PASSED + 1)); fi
     if slurm_kill; then PASSED=$((PASSED + 1)); fi
@@ -202,7 +203,7 @@ if ! command -v parallel >/dev/null; then
         { DEBIAN_FRONTEND=noninteractive apt-get -y -q install --no-install-recommends parallel >apt-parallel.log 2>&1 ||
             { apt-get -q update >>apt-parallel.log 2>&1 &&
                 DEBIAN_FRONTEND=noninteractive apt-get -y -q install --no-install-recommends parallel >>apt-parallel.log 2>&1; }; }; then
-        :
+        say "installed GNU parallel with apt-get"
     else
         say "skipped: parallel: GNU parallel is not installed and apt-get could not install it"
         SKIPPED=$((SKIPPED + 2))
