@@ -11,9 +11,9 @@
 # the shards' own results.jsonl hold every run exactly once (nothing lost, nothing duplicated).
 # Where Slurm or GNU parallel cannot be installed or started, that part prints
 # "skipped: <why>" and the script still exits 0; a failure exits 1.
-# Environment: VIZSIM (the binary; default: `cargo build --bin vizsim`, the debug build that
-# `cargo test` already made), CLUSTER_TEST_SHARDS (default 4), CLUSTER_TEST_KEEP=1 keeps the
-# work folder.
+# Environment: VIZSIM (the binary; default: the target/debug/vizsim that `cargo test` already
+# made, brought up to date with `cargo test --no-run`), CLUSTER_TEST_SHARDS (default 4),
+# CLUSTER_TEST_KEEP=1 keeps the work folder.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$PWD
@@ -28,7 +28,9 @@ say() { echo "cluster-test: $*"; }
 fail() { say "FAILED: $*"; FAILED=$((FAILED + 1)); return 1; }
 
 if [ -z "${VIZSIM:-}" ]; then
-    cargo build -q --bin vizsim
+    # the binary `cargo test` builds (test profile, target/debug): after it, this is a no-op;
+    # `cargo build` would rebuild everything with the dev profile's settings
+    cargo test -q --no-run --test cli
     TARGET=$(cargo metadata -q --format-version 1 --no-deps |
         sed -n 's/.*"target_directory":"\([^"]*\)".*/\1/p')
     VIZSIM=$TARGET/debug/vizsim
