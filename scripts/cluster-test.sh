@@ -169,7 +169,7 @@ fi
 
 # ---------------------------------------------------------------- GNU parallel
 parallel_kill() {
-    local t=$SECONDS pid shard_runs at_kill after_kill vpid _ rc2
+    local t=$SECONDS pid shard_runs at_kill after_kill vpid p _ rc2
     shard_runs=$(wc -l <p-clean/shard-$VICTIM/results.jsonl)
     bash "$ROOT/scripts/parallel-sweep.sh" exp.toml p-kill "$N" >p-kill.log 2>&1 &
     pid=$!
@@ -179,7 +179,11 @@ parallel_kill() {
     done
     at_kill=$(lines p-kill/shard-$VICTIM/results.jsonl)
     # the vizsim of the victim shard: its command line names the shard's folder
-    vpid=$(pgrep -f -- "^$VIZSIM .*--out p-kill/shard-$VICTIM " || true)
+    # (not a shell wrapping it: a killed wrapper would leave vizsim running)
+    vpid=""
+    for p in $(pgrep -f -- "--out p-kill/shard-$VICTIM --shard" || true); do
+        [ "$(cat /proc/"$p"/comm 2>/dev/null)" = vizsim ] && vpid="$vpid $p"
+    done
     [ -n "$vpid" ] || { wait "$pid" || true; fail "parallel: no running vizsim for shard $VICTIM"; return 1; }
     kill -KILL $vpid
     set +e
