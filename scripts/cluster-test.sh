@@ -229,7 +229,8 @@ if [ $parallel_ok = 1 ]; then
 fi
 
 if [ "$PASSED" -gt 0 ] || [ "$FAILED" -gt 0 ]; then
-    say "$PASSED passed, $FAILED failed, $SKIPPED skipped ($((SECONDS - T0)) s)"
+    say "took $((SECONDS - T0)) s"
+    say "$PASSED passed, $FAILED failed, $SKIPPED skipped"
 else
     say "all $SKIPPED skipped ($((SECONDS - T0)) s)"
 fi
