@@ -10,6 +10,10 @@ HOSTS=${4:-}
 VIZSIM=${VIZSIM:-vizsim}
 SSH=()
 if [ -n "$HOSTS" ]; then SSH=(--sshlogin "$HOSTS"); fi
-parallel "${SSH[@]}" -j "$N" "$VIZSIM" --threads 1 sweep "$EXPERIMENT" \
-    --out "$OUT/shard-{}" --shard "{}/$N" --quiet ::: $(seq 0 $((N - 1)))
+if ! parallel "${SSH[@]}" -j "$N" "$VIZSIM" --threads 1 sweep "$EXPERIMENT" \
+    --out "$OUT/shard-{}" --shard "{}/$N" --quiet ::: $(seq 0 $((N - 1))); then
+    # parallel's exit status is the number of failed shards; the finished runs are kept
+    echo "parallel-sweep: a shard failed, not merged; run the same command again: it resumes" >&2
+    exit 1
+fi
 "$VIZSIM" merge "$OUT"/shard-* --out "$OUT/merged"

@@ -2,6 +2,10 @@
 # One shard of a vizsim sweep per Slurm array task.
 #   sbatch --array=0-(N-1) scripts/slurm-sweep.sh EXPERIMENT.toml OUT_DIR N
 # then: vizsim merge OUT_DIR/shard-* --out OUT_DIR/merged
+# A node with fewer than the 4 CPUs asked below never runs a task (squeue: PartitionConfig):
+# there, override on the command line, e.g. sbatch -c 1 --array=... (scripts/cluster-test.sh).
+# A cancelled or failed task resumes when requeued: scontrol requeue JOB_I (it then waits two
+# minutes, BeginTime, unless: scontrol update JobId=JOB_I StartTime=now).
 #SBATCH --job-name=vizsim-sweep
 #SBATCH --cpus-per-task=4
 #SBATCH --time=04:00:00
