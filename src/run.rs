@@ -513,56 +513,26 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         (Renderer::Float(r), _) => r.render(&camera),
         (Renderer::Fixed(r), Model::Step) => r.render(&camera),
         (Renderer::Fixed(r), _) => {
-            let result = match run.memory {
+            let (result, stats) = match run.memory {
                 Memory::Sdram => {
                     let dims = prepared.volume.dims;
-                    match &r.blocks {
-                        Some(blocks) => {
-                            let map = AddressMap::blocked(&config.memory, dims, blocks.clone());
-                            let memory = SdramMemory::with_map(
-                                &config.memory,
-                                &config.sdram,
-                                map,
-                                config.clock.frequency_mhz,
-                            );
-                            let latency = config.blocking.lookup_latency;
-                            let mut memory = BlockLookup::new(memory, blocks.clone(), latency);
-                            let result = simulate_on(r, &camera, &mut memory, config, probes)?;
-                            memory_stats = Some(memory.stats_json());
-                            result
-                        }
-                        None => {
-                            let mut memory = SdramMemory::new(
-                                &config.memory,
-                                &config.sdram,
-                                dims,
-                                config.clock.frequency_mhz,
-                            );
-                            let result = simulate_on(r, &camera, &mut memory, config, probes)?;
-                            memory_stats = Some(memory.stats_json());
-                            result
-                        }
-                    }
+                    let map = match &r.blocks {
+                        Some(blocks) => AddressMap::blocked(&config.memory, dims, blocks.clone()),
+                        None => AddressMap::new(&config.memory, dims),
+                    };
+                    let memory = SdramMemory::with_map(
+                        &config.memory,
+                        &config.sdram,
+                        map,
+                        config.clock.frequency_mhz,
+                    );
+                    simulate_memory(r, &camera, memory, config, probes)?
                 }
                 Memory::Ideal { latency } => {
-                    let memory = IdealMemory::new(latency);
-                    match &r.blocks {
-                        Some(blocks) => {
-                            let latency = config.blocking.lookup_latency;
-                            let mut memory = BlockLookup::new(memory, blocks.clone(), latency);
-                            let result = simulate_on(r, &camera, &mut memory, config, probes)?;
-                            memory_stats = Some(memory.stats_json());
-                            result
-                        }
-                        None => {
-                            let mut memory = memory;
-                            let result = simulate_on(r, &camera, &mut memory, config, probes)?;
-                            memory_stats = Some(memory.stats_json());
-                            result
-                        }
-                    }
+                    simulate_memory(r, &camera, IdealMemory::new(latency), config, probes)?
                 }
             };
+            memory_stats = Some(stats);
             pipeline = Some(result.stats);
             result.frame
         }
@@ -654,6 +624,30 @@ fn is_zero(n: &u64) -> bool {
 /// Whether any of `[bricks]`, `[clip]`, `[geometry]` is on.
 pub fn ray_range_on(config: &HardwareConfig) -> bool {
     !(config.bricks.is_off() && config.clip.is_off() && config.geometry.is_off())
+}
+
+/// Simulates on `memory`, behind the block table's lookup stage when the renderer blocks;
+/// returns the result and the memory's statistics.
+fn simulate_memory<M: VoxelMemory>(
+    renderer: &FixedRenderer,
+    camera: &Camera,
+    memory: M,
+    config: &HardwareConfig,
+    probes: Probes,
+) -> Result<(crate::arch::pipeline::CycleResult, Value)> {
+    match &renderer.blocks {
+        Some(blocks) => {
+            let latency = config.blocking.lookup_latency;
+            let mut memory = BlockLookup::new(memory, blocks.clone(), latency);
+            let result = simulate_on(renderer, camera, &mut memory, config, probes)?;
+            Ok((result, memory.stats_json()))
+        }
+        None => {
+            let mut memory = memory;
+            let result = simulate_on(renderer, camera, &mut memory, config, probes)?;
+            Ok((result, memory.stats_json()))
+        }
+    }
 }
 
 fn simulate_on<M: VoxelMemory>(

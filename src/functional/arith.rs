@@ -114,7 +114,12 @@ impl ClassificationTable {
                 rgba.map(|c| (c * unit).round() as u16)
             })
             .collect();
-        let mut visible_prefix = Vec::with_capacity(densities + 1);
+        Self::from_entries(entries, bits)
+    }
+
+    /// The table of these entries, with its prefix count of visible entries.
+    fn from_entries(entries: Vec<[u16; 4]>, bits: u32) -> Self {
+        let mut visible_prefix = Vec::with_capacity(entries.len() + 1);
         let mut count = 0u32;
         visible_prefix.push(0);
         for e in &entries {
@@ -149,18 +154,7 @@ impl ClassificationTable {
                 }
             })
             .collect();
-        let mut visible_prefix = Vec::with_capacity(densities + 1);
-        visible_prefix.push(0);
-        let mut count = 0u32;
-        for e in &entries {
-            count += (e[3] > 0) as u32;
-            visible_prefix.push(count);
-        }
-        ClassificationTable {
-            bits,
-            entries,
-            visible_prefix,
-        }
+        Self::from_entries(entries, bits)
     }
 
     /// Whether any density in [lo, hi] has non-zero opacity in the table: the exact emptiness
