@@ -554,6 +554,10 @@ pub struct StepView<'a> {
     /// The map the frame leapt with (None without leaping).
     pub map: Option<&'a OccupancyMap>,
     pub frame: &'a Frame,
+    /// The frame's measurements (`run::execute`): its cycles are the step's render cycles.
+    pub measurements: &'a run::Measurements,
+    /// The transfer function's name.
+    pub transfer_function: &'a str,
 }
 
 /// Runs the frame loop of `source` with `run` (cycle model; its dataset is ignored; its
@@ -704,6 +708,8 @@ pub fn run_sequence(
             memory: &memory,
             map: map.as_ref(),
             frame: &report.frame,
+            measurements: &report.measurements,
+            transfer_function: &report.transfer_function,
         })?;
         steps.push(step_report);
     }

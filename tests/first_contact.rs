@@ -64,6 +64,11 @@ fn demo_renders_what_is_there_and_says_what_it_skipped() {
         "one gallery per phantom"
     );
     assert!(out_dir.join("flythrough-tube.png").is_file(), "{stdout}");
+    assert!(out_dir.join("sequence-metaballs.png").is_file(), "{stdout}");
+    assert!(
+        stdout.contains("phantom:metaballs:64: 5 time steps") && stdout.contains("frames/s"),
+        "{stdout}"
+    );
 }
 
 #[test]

@@ -1,5 +1,6 @@
 //! `vizsim demo`: the main job on the embedded default: orbits, a fly-through along the tube
-//! phantom (virtual endoscopy), a gallery of the phantoms and the datasets present, and the quick experiment's sweep, tables and charts.
+//! phantom (virtual endoscopy), a short dynamic sequence (metaballs, update / map / render
+//! cycles per step), a gallery of the phantoms and the datasets present, and the quick experiment's sweep, tables and charts.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -98,6 +99,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         );
     }
     flythrough(out, frames, &hardware)?;
+    dynamic_sequence(out, &hardware)?;
     for spec in &gallery {
         let volume = dataset::load(spec, dir.as_deref())?;
         let mut row = Vec::new();
@@ -180,6 +182,69 @@ fn flythrough(out: &Path, frames: u32, hardware: &HardwareConfig) -> Result<()> 
         sheet.display()
     );
     Ok(())
+}
+
+/// A short dynamic sequence: 5 time steps of `phantom:metaballs:64` through the frame loop of
+/// `vizsim sequence` (update, map built during the update, render on the cycle model), each
+/// panel captioned with its update, map and render cycles.
+fn dynamic_sequence(out: &Path, hardware: &HardwareConfig) -> Result<()> {
+    use vizsim::dynamic::{MapMode, SequenceOptions};
+    std::fs::create_dir_all(out)?;
+    let source = "phantom:metaballs:64";
+    let mut config = hardware.clone();
+    config.occupancy.subcube = 8;
+    let run = RunDescription {
+        size: (128, 128),
+        ..RunDescription::new(source, "class", Model::Cycle, config)
+    };
+    let options = SequenceOptions {
+        steps: 5,
+        dt: 0.1,
+        brick: 8,
+        map: MapMode::DuringUpdate,
+        verify: false,
+    };
+    let start = Instant::now();
+    let mut images = Vec::new();
+    let report = vizsim::dynamic::run_sequence(&run, source, &options, |view| {
+        let s = view.report;
+        let t = s.volume.rsplit_once(":t=").map_or("0", |(_, t)| t);
+        images.push((
+            view.frame.clone(),
+            vec![
+                format!("step {}, t = {t}", s.step),
+                format!("update {} cycles", thousands(s.update_cycles)),
+                format!("map {} cycles", thousands(s.map_cycles)),
+                format!("render {} cycles", thousands(s.render_cycles)),
+            ],
+        ));
+        Ok(())
+    })?;
+    let panels: Vec<_> = images.iter().map(|(f, l)| (f, l.clone())).collect();
+    let sheet = out.join("sequence-metaballs.png");
+    write_contact_sheet(&panels, 5, &sheet)?;
+    println!(
+        "{source}: {} time steps (update, map during the update, render; cycle model) in {:.2} s: \
+         {:.1} frames/s after the download -> {}",
+        report.steps.len(),
+        start.elapsed().as_secs_f64(),
+        report.steady_fps,
+        sheet.display()
+    );
+    Ok(())
+}
+
+/// 1234567 -> "1,234,567".
+fn thousands(n: u64) -> String {
+    let digits = n.to_string();
+    let mut out = String::new();
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
 }
 
 /// The quick experiment (configs/experiments/quick.toml, embedded): sweep, tables and charts.

@@ -16,6 +16,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 use serde_json::{json, Value};
 
+use crate::dynamic::{run_sequence, SequenceOptions, StepView};
 use crate::error::{Error, Result};
 use crate::run::{self, Prepared, Probes};
 use spec::{dataset_label, Expansion, Model, RunSpec};
@@ -51,6 +52,18 @@ impl Shard {
 /// where the run sits in the experiment, then the run's measurements.
 fn run_frame(run: &RunSpec, prepared: &Prepared, experiment: &str) -> Result<Value> {
     let report = run::execute(&run.run, prepared, Probes::default())?;
+    let mut line = identity_line(run, experiment, &report.transfer_function);
+    let obj = line.as_object_mut().expect("object");
+    if let Value::Object(measured) = serde_json::to_value(&report.measurements)
+        .map_err(|e| Error::Invalid(format!("result of run {}: {e}", run.key)))?
+    {
+        obj.extend(measured);
+    }
+    Ok(line)
+}
+
+/// Where a run sits in the experiment: the first fields of its result line.
+fn identity_line(run: &RunSpec, experiment: &str, transfer_function: &str) -> Value {
     let desc = &run.run;
     let (label, stand_in) = dataset_label(&desc.dataset);
     let mut line = json!({
@@ -60,7 +73,7 @@ fn run_frame(run: &RunSpec, prepared: &Prepared, experiment: &str) -> Result<Val
         "dataset_label": label,
         "stand_in": stand_in,
         "tf": desc.tf,
-        "transfer_function": report.transfer_function,
+        "transfer_function": transfer_function,
         "mode": run.mode.name(),
         "model": desc.model,
         "frame": run.frame,
@@ -74,13 +87,108 @@ fn run_frame(run: &RunSpec, prepared: &Prepared, experiment: &str) -> Result<Val
         "fits_default_sram": run.fits_default_sram,
         "sram_bits": desc.hardware.occupancy.sram_bits,
     });
+    if let Some(step) = &run.sequence {
+        let obj = line.as_object_mut().expect("object");
+        obj.insert("time_step".into(), json!(step.time_step));
+        obj.insert("map".into(), json!(step.map.name()));
+        obj.insert("dt".into(), json!(step.dt));
+        obj.insert("brick".into(), json!(step.brick));
+    }
+    line
+}
+
+/// The result line of one time step of a sequence: the run's identity, the frame's
+/// measurements (`cycles` are the render cycles), then the step's update, map, render and total
+/// cycles; `frame_time_ns` and `fps` are the whole step's (update + map + render).
+fn step_line(run: &RunSpec, view: &StepView, experiment: &str, clock_mhz: f64) -> Result<Value> {
+    let mut line = identity_line(run, experiment, view.transfer_function);
     let obj = line.as_object_mut().expect("object");
-    if let Value::Object(measured) = serde_json::to_value(&report.measurements)
+    if let Value::Object(measured) = serde_json::to_value(view.measurements)
         .map_err(|e| Error::Invalid(format!("result of run {}: {e}", run.key)))?
     {
         obj.extend(measured);
     }
+    let s = view.report;
+    let total_ns = s.total_cycles as f64 * 1e3 / clock_mhz;
+    for (field, value) in [
+        ("volume", json!(s.volume)),
+        ("regions", json!(s.regions)),
+        ("voxels_written", json!(s.voxels_written)),
+        ("voxels_touched", json!(s.voxels_touched)),
+        ("update_cycles", json!(s.update_cycles)),
+        ("map_cycles", json!(s.map_cycles)),
+        ("render_cycles", json!(s.render_cycles)),
+        ("total_cycles", json!(s.total_cycles)),
+        ("stale_subcubes", json!(s.stale_subcubes)),
+        ("frame_time_ns", json!(total_ns)),
+        ("fps", json!(1e9 / total_ns.max(1e-9))),
+    ] {
+        obj.insert(field.into(), value);
+    }
     Ok(line)
+}
+
+/// Runs the pending time steps of sequence experiments: each sequence (source, TF,
+/// configuration, view, map strategy) runs its frame loop from step 0 (a step depends on the
+/// memory the previous steps left), up to its last pending step, and appends the line of
+/// every pending step as the loop reaches it; steps already in the results are recomputed
+/// (the loop needs them) but not written again.
+fn sweep_sequences(
+    pending: &[&RunSpec],
+    store: &Mutex<ResultStore>,
+    name: &str,
+    bar: &indicatif::ProgressBar,
+) -> Result<()> {
+    let mut groups: BTreeMap<String, Vec<&RunSpec>> = BTreeMap::new();
+    let mut order = Vec::new();
+    for run in pending {
+        let g = run.sequence_group().expect("a sequence run");
+        if !groups.contains_key(&g) {
+            order.push(g.clone());
+        }
+        groups.entry(g).or_default().push(run);
+    }
+    // The longest sequences first.
+    let last_step = |g: &String| -> usize {
+        groups[g]
+            .iter()
+            .filter_map(|r| r.sequence.as_ref().map(|s| s.time_step))
+            .max()
+            .unwrap_or(0)
+    };
+    order.sort_by_key(|g| std::cmp::Reverse(last_step(g)));
+    order.par_iter().try_for_each(|g| -> Result<()> {
+        let runs = &groups[g];
+        let first = runs[0];
+        let step = first.sequence.as_ref().expect("a sequence run");
+        let by_step: BTreeMap<usize, &RunSpec> = runs
+            .iter()
+            .map(|r| (r.sequence.as_ref().expect("a sequence run").time_step, *r))
+            .collect();
+        let options = SequenceOptions {
+            steps: last_step(g) + 1,
+            dt: step.dt as f32,
+            brick: step.brick,
+            map: step.map,
+            verify: false,
+        };
+        let clock = first.run.hardware.clock.frequency_mhz;
+        let mut t = Instant::now();
+        run_sequence(&first.run, &step.source, &options, |view| {
+            if let Some(run) = by_step.get(&view.report.step) {
+                let line = step_line(run, view, name, clock)?;
+                let wall = t.elapsed().as_secs_f64();
+                store
+                    .lock()
+                    .map_err(|_| Error::Invalid("results writer poisoned".into()))?
+                    .append(&run.key, &line, wall)?;
+                bar.inc(1);
+            }
+            t = Instant::now();
+            Ok(())
+        })?;
+        Ok(())
+    })
 }
 
 /// What a sweep did.
@@ -154,6 +262,13 @@ pub fn sweep(
     order.sort_by(|a, b| cost(b).total_cmp(&cost(a)));
     let store = Mutex::new(store);
     let name = &expansion.experiment.name;
+    if expansion.experiment.sequence.is_some() {
+        sweep_sequences(&pending, &store, name, &bar)?;
+        bar.finish_and_clear();
+        summary.ran = pending.len();
+        summary.wall_seconds = start.elapsed().as_secs_f64();
+        return Ok(summary);
+    }
     order.par_iter().try_for_each(|g| -> Result<()> {
         let runs = &groups[g];
         let volume = &expansion.volumes[&runs[0].run.dataset];
@@ -202,7 +317,11 @@ fn estimated_run_seconds(expansion: &Expansion, run: &RunSpec) -> f64 {
     } else {
         0.8
     };
-    let steps = desc.size.0 as f64 * desc.size.1 as f64 * largest * factor;
+    let mut steps = desc.size.0 as f64 * desc.size.1 as f64 * largest * factor;
+    if run.sequence.is_some() {
+        // A time step also runs the update engine: about a cycle per five voxels changed.
+        steps += dims.iter().product::<usize>() as f64 * 0.2;
+    }
     match desc.model {
         Model::Float | Model::Step => steps / 50e6,
         Model::Cycle => steps * 1.1 / 5e6,

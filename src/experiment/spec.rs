@@ -11,6 +11,7 @@ use sha2::{Digest, Sha256};
 
 use crate::camera::{parse_image_size, Projection};
 use crate::config::{self, HardwareConfig};
+use crate::dynamic::{MapMode, Sequence};
 use crate::error::{Error, Result};
 use crate::occupancy::SUBCUBE_SIZES;
 use crate::run::RunDescription;
@@ -49,6 +50,64 @@ pub struct ExperimentFile {
     /// Runs matching every key of one of these tables are left out.
     #[serde(default)]
     pub exclude: Vec<toml::Table>,
+    /// A time axis: the datasets are sequences (`phantom:metaballs…`, `phantom:tsdf…`, a
+    /// folder of time steps) and every run is one time step of one sequence's frame loop
+    /// (docs/experiments.md, "Sequences"). Written out only when given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sequence: Option<SequenceAxis>,
+}
+
+/// `[sequence]`: the time axis of a dynamic experiment.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SequenceAxis {
+    /// Time steps per sequence (step 0 downloads the whole volume).
+    pub steps: usize,
+    /// Metaballs: time between steps.
+    #[serde(default = "default_dt")]
+    pub dt: f64,
+    /// Edge of the bricks a partial update sends.
+    #[serde(default = "default_brick")]
+    pub brick: usize,
+    /// How the occupancy map follows the volume: `update` (built during the update, widened),
+    /// `rescan` (during the update, partly written sub-cubes read back), `scan` (a separate
+    /// scan pass per step), `none` (no leaping).
+    #[serde(default = "default_maps")]
+    pub map: Vec<String>,
+}
+
+fn default_dt() -> f64 {
+    0.05
+}
+fn default_brick() -> usize {
+    8
+}
+fn default_maps() -> Vec<String> {
+    vec!["update".into(), "scan".into(), "none".into()]
+}
+
+/// A map strategy of `[sequence] map`: `update` (or `during-update`), `rescan`, `scan`, `none`.
+pub fn parse_map_strategy(text: &str) -> std::result::Result<MapMode, String> {
+    match text {
+        "update" => Ok(MapMode::DuringUpdate),
+        "during-update" | "rescan" | "scan" | "none" => MapMode::parse(text),
+        other => Err(format!(
+            "`{other}`: unknown map strategy; expected `update` (map built during the update), \
+             `rescan` (during the update, partly written sub-cubes read back), `scan` (a separate \
+             scan pass) or `none` (no leaping)"
+        )),
+    }
+}
+
+/// Where a run sits in a sequence: one time step of one frame loop.
+#[derive(Clone, Debug, Serialize)]
+pub struct StepSpec {
+    /// The sequence's source (the dataset as listed).
+    pub source: String,
+    pub time_step: usize,
+    pub map: MapMode,
+    pub dt: f64,
+    pub brick: usize,
 }
 
 fn default_tf() -> Vec<String> {
@@ -284,9 +343,28 @@ pub struct RunSpec {
     pub axes: BTreeMap<String, serde_json::Value>,
     pub fits_default_sram: bool,
     pub run: RunDescription,
+    /// Sequence experiments: the time step this run is. Serialised only when set.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sequence: Option<StepSpec>,
 }
 
 impl RunSpec {
+    /// Runs that are steps of one frame loop (same source, TF, configuration, view and map
+    /// strategy) run together, as one sequence; None for runs without a time axis.
+    pub fn sequence_group(&self) -> Option<String> {
+        let s = self.sequence.as_ref()?;
+        Some(format!(
+            "{}|{}|{}|{}|{}|{}|{}",
+            self.run.dataset,
+            self.run.tf,
+            self.run.view,
+            s.map.name(),
+            s.dt,
+            s.brick,
+            serde_json::to_string(&self.run.hardware).unwrap_or_default(),
+        ))
+    }
+
     /// Runs that differ only in the frame share a prepared run (same dataset, TF and config).
     pub fn group(&self) -> (String, String, String) {
         (
@@ -402,6 +480,79 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
             return Err(bad("tf", format!("`{tf}`: expected `zero` or `class`")));
         }
     }
+    // The time axis: checked before anything is loaded.
+    let sequence = match &experiment.sequence {
+        None => None,
+        Some(seq) => {
+            if seq.steps == 0 {
+                return Err(bad(
+                    "sequence.steps",
+                    "0 is out of range; a sequence needs at least one time step".into(),
+                ));
+            }
+            if seq.steps > crate::dynamic::MAX_STEPS {
+                return Err(bad(
+                    "sequence.steps",
+                    format!(
+                        "{} is out of range; allowed 1..={}",
+                        seq.steps,
+                        crate::dynamic::MAX_STEPS
+                    ),
+                ));
+            }
+            if seq.brick == 0 {
+                return Err(bad(
+                    "sequence.brick",
+                    "0 is out of range; bricks of at least 1".into(),
+                ));
+            }
+            if !seq.dt.is_finite() || seq.dt <= 0.0 {
+                return Err(bad(
+                    "sequence.dt",
+                    format!("{}: must be a finite number above 0", seq.dt),
+                ));
+            }
+            if seq.map.is_empty() {
+                return Err(bad(
+                    "sequence.map",
+                    "is empty; give at least one map strategy (update, rescan, scan, none)".into(),
+                ));
+            }
+            let maps = seq
+                .map
+                .iter()
+                .map(|m| parse_map_strategy(m).map_err(|e| bad("sequence.map", e)))
+                .collect::<Result<Vec<_>>>()?;
+            if let Some(m) = models.iter().find(|m| **m != Model::Cycle) {
+                return Err(bad(
+                    "models",
+                    format!(
+                        "`{}`: a sequence experiment measures update, map and render cycles on \
+                         the cycle model; use models = [\"cycle\"]",
+                        m.name()
+                    ),
+                ));
+            }
+            for m in &modes {
+                let plain = Mode {
+                    ert: m.ert,
+                    subcube: m.subcube,
+                    ..Mode::parse("none").expect("valid")
+                };
+                if *m != plain {
+                    return Err(bad(
+                        "modes",
+                        format!(
+                            "`{}`: a sequence experiment takes `none`, `ert`, `leapN` and \
+                             `ert+leapN` (the map follows the volume as `sequence.map` says)",
+                            m.name()
+                        ),
+                    ));
+                }
+            }
+            Some((seq.clone(), maps))
+        }
+    };
     let frames = &experiment.frames;
     if frames.orbit == 0 || frames.orbit > 3600 {
         return Err(bad(
@@ -517,6 +668,11 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
     ]
     .into_iter()
     .chain(groups.iter().map(|g| axes[g[0]].1.len()))
+    .chain(
+        sequence
+            .iter()
+            .flat_map(|(seq, maps)| [seq.steps, maps.len()]),
+    )
     .try_fold(1u64, |acc, n| acc.checked_mul(n as u64))
     .unwrap_or(u64::MAX);
     if count > MAX_RUNS {
@@ -554,11 +710,27 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
     }
 
     // Datasets: loaded once, here, so a missing one fails before any run.
+    // A sequence's dataset is its source, and its volume the first time step (the sequence
+    // is opened here, so a static dataset or a folder with too few steps fails now).
     let mut volumes = BTreeMap::new();
     for name in &experiment.datasets {
         if !volumes.contains_key(name) {
-            let volume = dataset::load(name, data_dir)
-                .map_err(|e| bad("datasets", format!("`{name}`: {e}")))?;
+            let volume = match &sequence {
+                None => dataset::load(name, data_dir)
+                    .map_err(|e| bad("datasets", format!("`{name}`: {e}")))?,
+                Some((seq, _)) => {
+                    let memory = HardwareConfig::from_toml_str(&base_text, &base_name, &[])?.memory;
+                    let first = Sequence::open(name, seq.steps, seq.dt as f32, seq.brick)
+                        .and_then(|mut s| s.next_step(&memory))
+                        .map_err(|e| {
+                            bad(
+                                "datasets",
+                                format!("`{name}` is not a sequence for `[sequence]`: {e}"),
+                            )
+                        })?;
+                    first.expect("at least one step").volume
+                }
+            };
             volumes.insert(name.clone(), Arc::new(volume));
         }
     }
@@ -578,142 +750,189 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
     if frames.path.is_some() {
         crate::camera::View::parse(&view_of(0)).map_err(|e| bad("frames.path", e.to_string()))?;
     }
+    let map_variants: Vec<Option<MapMode>> = match &sequence {
+        Some((_, maps)) => maps.iter().map(|&m| Some(m)).collect(),
+        None => vec![None],
+    };
     let mut runs = Vec::new();
     let mut skipped = Vec::new();
     let mut configs: BTreeMap<String, HardwareConfig> = BTreeMap::new();
     for name in &experiment.datasets {
         let dims = volumes[name].dims;
         for tf in &experiment.tf {
-            for mode in &modes {
-                for &model in &models {
-                    for combo in &combos {
-                        let mut overrides: Vec<String> =
-                            combo.iter().map(|(p, v)| format!("{p}={v}")).collect();
-                        overrides.push(format!("compositing.ert={}", mode.ert));
-                        overrides.push(format!("occupancy.subcube={}", mode.subcube));
-                        overrides.push(format!("occupancy.hierarchy={}", mode.hierarchy));
-                        overrides.push(format!("occupancy.kind=\"{tf}\""));
-                        let id = overrides.join(" ");
-                        let mut config = match configs.get(&id) {
-                            Some(c) => c.clone(),
-                            None => {
-                                let c = HardwareConfig::from_toml_str(
-                                    &base_text, &base_name, &overrides,
-                                )
-                                .map_err(|e| {
-                                    bad(
-                                        "axes",
-                                        format!(
-                                            "the combination {}: {e}",
-                                            combo
-                                                .iter()
-                                                .map(|(p, v)| format!("{p}={v}"))
-                                                .collect::<Vec<_>>()
-                                                .join(", ")
-                                        ),
+            for given_mode in &modes {
+                for &map in &map_variants {
+                    // A sequence without leaping renders without a map whatever the mode says.
+                    let mode = &match map {
+                        Some(MapMode::None) => Mode {
+                            subcube: 0,
+                            hierarchy: false,
+                            ..*given_mode
+                        },
+                        _ => *given_mode,
+                    };
+                    if map.is_some_and(|m| m != MapMode::None) && mode.subcube == 0 {
+                        skipped.push(Skipped {
+                            dataset: name.clone(),
+                            mode: mode.name(),
+                            reason: format!(
+                                "map strategy {} needs a leaping mode (leapN)",
+                                map.map(|m| m.name()).unwrap_or_default()
+                            ),
+                        });
+                        continue;
+                    }
+                    for &model in &models {
+                        for combo in &combos {
+                            let mut overrides: Vec<String> =
+                                combo.iter().map(|(p, v)| format!("{p}={v}")).collect();
+                            overrides.push(format!("compositing.ert={}", mode.ert));
+                            overrides.push(format!("occupancy.subcube={}", mode.subcube));
+                            overrides.push(format!("occupancy.hierarchy={}", mode.hierarchy));
+                            overrides.push(format!("occupancy.kind=\"{tf}\""));
+                            let id = overrides.join(" ");
+                            let mut config = match configs.get(&id) {
+                                Some(c) => c.clone(),
+                                None => {
+                                    let c = HardwareConfig::from_toml_str(
+                                        &base_text, &base_name, &overrides,
                                     )
-                                })?;
-                                configs.insert(id, c.clone());
-                                c
-                            }
-                        };
-                        if mode.distance_bits > 0 {
-                            // Set here, not by `--set`, so a base file without the fields works.
-                            config.occupancy.structure = config::LeapStructure::Distance;
-                            config.occupancy.distance_bits = mode.distance_bits;
-                        } else if let Some(regions) = mode.leap_values {
-                            config.occupancy.structure = config::LeapStructure::LeapValues;
-                            config.leap_values.regions = regions;
-                        } else {
-                            config.occupancy.structure = config::LeapStructure::Map;
-                        }
-                        // Bricks: set here (like the distance volume), so a base file without
-                        // the section works and a run without bricks keeps its key.
-                        config.bricks.size = mode.bricks;
-                        if mode.bricks > 0 {
-                            config.bricks.setup = if mode.brick_table {
-                                config::BrickSetup::Table
-                            } else {
-                                config::BrickSetup::Traversal
+                                    .map_err(|e| {
+                                        bad(
+                                            "axes",
+                                            format!(
+                                                "the combination {}: {e}",
+                                                combo
+                                                    .iter()
+                                                    .map(|(p, v)| format!("{p}={v}"))
+                                                    .collect::<Vec<_>>()
+                                                    .join(", ")
+                                            ),
+                                        )
+                                    })?;
+                                    configs.insert(id, c.clone());
+                                    c
+                                }
                             };
-                            if mode.bricks > *dims.iter().max().unwrap_or(&0) {
-                                skipped.push(Skipped {
-                                    dataset: name.clone(),
-                                    mode: mode.name(),
-                                    reason: format!("brick larger than the volume {dims:?}"),
-                                });
-                                continue;
+                            if mode.distance_bits > 0 {
+                                // Set here, not by `--set`, so a base file without the fields works.
+                                config.occupancy.structure = config::LeapStructure::Distance;
+                                config.occupancy.distance_bits = mode.distance_bits;
+                            } else if let Some(regions) = mode.leap_values {
+                                config.occupancy.structure = config::LeapStructure::LeapValues;
+                                config.leap_values.regions = regions;
+                            } else {
+                                config.occupancy.structure = config::LeapStructure::Map;
                             }
-                        }
-                        // Iso mode: set here too; the iso value comes from the base file or
-                        // an `iso.value` axis.
-                        if let Some(n) = mode.iso {
-                            config.iso.enabled = true;
-                            config.iso.refinement_steps = n;
-                        }
-                        let mut fits = true;
-                        if mode.subcube > 0 {
-                            if mode.subcube > *dims.iter().max().unwrap_or(&0) {
-                                skipped.push(Skipped {
-                                    dataset: name.clone(),
-                                    mode: mode.name(),
-                                    reason: format!("sub-cube larger than the volume {dims:?}"),
-                                });
-                                continue;
-                            }
-                            let bits = map_bits(dims, mode.subcube, mode.hierarchy);
-                            if bits > config.occupancy.sram_bits {
-                                if !experiment.raise_sram {
+                            // Bricks: set here (like the distance volume), so a base file without
+                            // the section works and a run without bricks keeps its key.
+                            config.bricks.size = mode.bricks;
+                            if mode.bricks > 0 {
+                                config.bricks.setup = if mode.brick_table {
+                                    config::BrickSetup::Table
+                                } else {
+                                    config::BrickSetup::Traversal
+                                };
+                                if mode.bricks > *dims.iter().max().unwrap_or(&0) {
                                     skipped.push(Skipped {
                                         dataset: name.clone(),
                                         mode: mode.name(),
-                                        reason: format!(
-                                            "map needs {bits} bits > occupancy.sram_bits {}",
-                                            config.occupancy.sram_bits
-                                        ),
+                                        reason: format!("brick larger than the volume {dims:?}"),
                                     });
                                     continue;
                                 }
-                                fits = false;
-                                config.occupancy.sram_bits = bits.next_power_of_two();
                             }
-                        }
-                        let axes_json: BTreeMap<String, serde_json::Value> = combo
-                            .iter()
-                            .map(|(p, v)| (p.clone(), toml_to_json(v)))
-                            .collect();
-                        let excluded = experiment.exclude.iter().any(|rule| {
-                            rule.iter().all(|(k, v)| match k.as_str() {
-                                "dataset" => v.as_str() == Some(name),
-                                "tf" => v.as_str() == Some(tf),
-                                "mode" => v
-                                    .as_str()
-                                    .and_then(|m| Mode::parse(m).ok())
-                                    .is_some_and(|m| m == *mode),
-                                "model" => v.as_str() == Some(model.name()),
-                                path => axes_json.get(path) == Some(&toml_to_json(v)),
-                            })
-                        });
-                        if excluded {
-                            continue;
-                        }
-                        for &frame in &frame_list {
-                            let view = view_of(frame);
-                            let run = RunDescription {
-                                view,
-                                projection,
-                                size,
-                                ..RunDescription::new(name, tf, model, config.clone())
-                            };
-                            runs.push(RunSpec {
-                                key: run_key(&run),
-                                index: runs.len(),
-                                mode: *mode,
-                                frame,
-                                axes: axes_json.clone(),
-                                fits_default_sram: fits,
-                                run,
+                            // Iso mode: set here too; the iso value comes from the base file or
+                            // an `iso.value` axis.
+                            if let Some(n) = mode.iso {
+                                config.iso.enabled = true;
+                                config.iso.refinement_steps = n;
+                            }
+                            let mut fits = true;
+                            if mode.subcube > 0 {
+                                if mode.subcube > *dims.iter().max().unwrap_or(&0) {
+                                    skipped.push(Skipped {
+                                        dataset: name.clone(),
+                                        mode: mode.name(),
+                                        reason: format!("sub-cube larger than the volume {dims:?}"),
+                                    });
+                                    continue;
+                                }
+                                let bits = map_bits(dims, mode.subcube, mode.hierarchy);
+                                if bits > config.occupancy.sram_bits {
+                                    if !experiment.raise_sram {
+                                        skipped.push(Skipped {
+                                            dataset: name.clone(),
+                                            mode: mode.name(),
+                                            reason: format!(
+                                                "map needs {bits} bits > occupancy.sram_bits {}",
+                                                config.occupancy.sram_bits
+                                            ),
+                                        });
+                                        continue;
+                                    }
+                                    fits = false;
+                                    config.occupancy.sram_bits = bits.next_power_of_two();
+                                }
+                            }
+                            let axes_json: BTreeMap<String, serde_json::Value> = combo
+                                .iter()
+                                .map(|(p, v)| (p.clone(), toml_to_json(v)))
+                                .collect();
+                            let excluded = experiment.exclude.iter().any(|rule| {
+                                rule.iter().all(|(k, v)| match k.as_str() {
+                                    "dataset" => v.as_str() == Some(name),
+                                    "tf" => v.as_str() == Some(tf),
+                                    "mode" => v
+                                        .as_str()
+                                        .and_then(|m| Mode::parse(m).ok())
+                                        .is_some_and(|m| m == *mode),
+                                    "model" => v.as_str() == Some(model.name()),
+                                    path => axes_json.get(path) == Some(&toml_to_json(v)),
+                                })
                             });
+                            if excluded {
+                                continue;
+                            }
+                            for &frame in &frame_list {
+                                let view = view_of(frame);
+                                let run = RunDescription {
+                                    view,
+                                    projection,
+                                    size,
+                                    ..RunDescription::new(name, tf, model, config.clone())
+                                };
+                                let spec = RunSpec {
+                                    key: run_key(&run),
+                                    index: runs.len(),
+                                    mode: *mode,
+                                    frame,
+                                    axes: axes_json.clone(),
+                                    fits_default_sram: fits,
+                                    run,
+                                    sequence: None,
+                                };
+                                match (&sequence, map) {
+                                    (Some((seq, _)), Some(map)) => {
+                                        for time_step in 0..seq.steps {
+                                            let step = StepSpec {
+                                                source: name.clone(),
+                                                time_step,
+                                                map,
+                                                dt: seq.dt,
+                                                brick: seq.brick,
+                                            };
+                                            runs.push(RunSpec {
+                                                key: step_key(&spec.run, &step),
+                                                index: runs.len(),
+                                                sequence: Some(step),
+                                                ..spec.clone()
+                                            });
+                                        }
+                                    }
+                                    _ => runs.push(spec),
+                                }
+                            }
                         }
                     }
                 }
@@ -777,6 +996,32 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
 /// enter only when they differ from the defaults every experiment had before they were part
 /// of a run, so keys of earlier results stay valid.
 pub fn run_key(run: &RunDescription) -> String {
+    hash_key(&canonical_run(run))
+}
+
+/// The key of one time step of a sequence: the run's identity (as `run_key`) and where in which
+/// frame loop it is (map strategy, dt, brick, time step). The number of steps is not part of
+/// it: a longer sequence repeats the shorter one's first steps.
+pub fn step_key(run: &RunDescription, step: &StepSpec) -> String {
+    let mut canonical = canonical_run(run);
+    canonical.as_object_mut().expect("object").insert(
+        "sequence".into(),
+        serde_json::json!({
+            "map": step.map.name(),
+            "dt": step.dt,
+            "brick": step.brick,
+            "time_step": step.time_step,
+        }),
+    );
+    hash_key(&canonical)
+}
+
+fn hash_key(canonical: &serde_json::Value) -> String {
+    let digest = Sha256::digest(canonical.to_string().as_bytes());
+    digest[..8].iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn canonical_run(run: &RunDescription) -> serde_json::Value {
     let mut canonical = serde_json::json!({
         "dataset": run.dataset,
         "tf": run.tf,
@@ -800,6 +1045,5 @@ pub fn run_key(run: &RunDescription) -> String {
     if run.memory != defaults.memory {
         obj.insert("memory".into(), serde_json::json!(run.memory));
     }
-    let digest = Sha256::digest(canonical.to_string().as_bytes());
-    digest[..8].iter().map(|b| format!("{b:02x}")).collect()
+    canonical
 }
