@@ -128,6 +128,14 @@ fn step_line(run: &RunSpec, view: &StepView, experiment: &str, clock_mhz: f64) -
     Ok(line)
 }
 
+/// Appends a finished run's line (and its wall time) to the shared store.
+fn append(store: &Mutex<ResultStore>, key: &str, line: &Value, wall_seconds: f64) -> Result<()> {
+    store
+        .lock()
+        .map_err(|_| Error::Invalid("results writer poisoned".into()))?
+        .append(key, line, wall_seconds)
+}
+
 /// Runs the pending time steps of sequence experiments: each sequence (source, TF,
 /// configuration, view, map strategy) runs its frame loop from step 0 (a step depends on the
 /// memory the previous steps left), up to its last pending step, and appends the line of
@@ -177,11 +185,7 @@ fn sweep_sequences(
         run_sequence(&first.run, &step.source, &options, |view| {
             if let Some(run) = by_step.get(&view.report.step) {
                 let line = step_line(run, view, name, clock)?;
-                let wall = t.elapsed().as_secs_f64();
-                store
-                    .lock()
-                    .map_err(|_| Error::Invalid("results writer poisoned".into()))?
-                    .append(&run.key, &line, wall)?;
+                append(store, &run.key, &line, t.elapsed().as_secs_f64())?;
                 bar.inc(1);
             }
             t = Instant::now();
@@ -276,11 +280,7 @@ pub fn sweep(
         runs.par_iter().try_for_each(|run| -> Result<()> {
             let t = Instant::now();
             let line = run_frame(run, &prepared, name)?;
-            let wall = t.elapsed().as_secs_f64();
-            store
-                .lock()
-                .map_err(|_| Error::Invalid("results writer poisoned".into()))?
-                .append(&run.key, &line, wall)?;
+            append(&store, &run.key, &line, t.elapsed().as_secs_f64())?;
             bar.inc(1);
             Ok(())
         })
