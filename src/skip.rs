@@ -263,12 +263,14 @@ pub fn leap_steps(
     cube_log2: u32,
     widths: &SkipWidths,
 ) -> Option<u64> {
-    (0..3)
-        .filter_map(|axis| {
-            let recip = recips[axis].as_ref()?;
-            Some(axis_steps(p[axis], v[axis], recip, cube_log2, widths))
-        })
-        .min()
+    // An axis without a reciprocal does not move: it never limits the leap. (The minimum of
+    // three, not an iterator's: the leap is on the ray's critical path.)
+    let steps = [0, 1, 2].map(|axis| match &recips[axis] {
+        Some(recip) => axis_steps(p[axis], v[axis], recip, cube_log2, widths),
+        None => u64::MAX,
+    });
+    let n = steps[0].min(steps[1]).min(steps[2]);
+    (n != u64::MAX).then_some(n)
 }
 
 /// The exact reference for [`leap_steps`]: the number of steps after which `p + n·v` first lies

@@ -293,14 +293,15 @@ fn refinement_never_leaves_the_interval_between_the_two_samples() {
                                 &mut state,
                                 ray.samples as u64 - k,
                             );
-                            if interval.is_none() && step.next.is_some() {
+                            if interval.is_none() && step.bisects {
                                 let lo = [0, 1, 2].map(|a| pos[a] - ray.step[a]);
                                 interval = Some((lo, pos));
                             }
                             if step.ends_ray {
-                                let SampleValue::Surface { at } = step.value else {
+                                let SampleValue::Surface = step.value else {
                                     panic!("the last step composites the surface");
                                 };
+                                let at = state.sample_position(step.value, pos);
                                 assert!(interpolate_exact(&volume, at, pf, wb) >= threshold);
                                 if let Some((lo, hi)) = interval {
                                     refined += 1;
@@ -317,13 +318,11 @@ fn refinement_never_leaves_the_interval_between_the_two_samples() {
                                 }
                                 break;
                             }
-                            match step.next {
-                                Some(next) => pos = next,
-                                None => {
-                                    k += step.advance;
-                                    pos = [0, 1, 2]
-                                        .map(|a| pos[a] + step.advance as i64 * ray.step[a]);
-                                }
+                            if step.bisects {
+                                pos = state.midpoint();
+                            } else {
+                                k += step.advance;
+                                pos = [0, 1, 2].map(|a| pos[a] + step.advance as i64 * ray.step[a]);
                             }
                         }
                     }

@@ -708,7 +708,12 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
         if !memory.try_push(request, now) {
             return Err(Stall::Memory);
         }
-        let id = buffer.reserve(slot.ray_id, slot.k, slot.pos, step.value);
+        let id = buffer.reserve(
+            slot.ray_id,
+            slot.k,
+            state.sample_position(step.value, slot.pos),
+            step.value,
+        );
         debug_assert_eq!(id, Some(tag));
         slot.samples_issued += 1;
         held_tag = step.waits_for_words.then_some(tag);
@@ -727,9 +732,11 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
     } else {
         slot.k + step.advance
     };
-    let new_pos = step
-        .next
-        .unwrap_or_else(|| add_steps(slot.pos, slot.ray.step, step.advance));
+    let new_pos = if step.bisects {
+        state.midpoint()
+    } else {
+        add_steps(slot.pos, slot.ray.step, step.advance)
+    };
     stats.steps += 1;
     slot.busy = true;
     let update = PositionUpdate {

@@ -64,7 +64,26 @@ impl Neighbourhood {
 /// rounded to nearest once at the end — the classification table's index.
 #[inline(always)]
 pub fn interpolate(volume: &Volume, pos: [i64; 3], pf: u32, wb: u32) -> u16 {
-    let sum = interpolate_exact(volume, pos, pf, wb);
+    round_sum(interpolate_exact(volume, pos, pf, wb), wb)
+}
+
+/// `interpolate` over cells that hold an 8-bit density in their low byte (leap values' packed
+/// cells, `LeapCells::Packed`): the same sum and rounding.
+#[inline(always)]
+pub fn interpolate_low_bytes(
+    cells: &[u16],
+    dims: [usize; 3],
+    pos: [i64; 3],
+    pf: u32,
+    wb: u32,
+) -> u16 {
+    let n = Neighbourhood::new(dims, pos, pf, wb);
+    round_sum(n.weighted_sum(|i| (cells[i] & 0xFF) as i64), wb)
+}
+
+/// The exact weighted sum (3·wb fraction bits) rounded to nearest once: the table index.
+#[inline(always)]
+fn round_sum(sum: i64, wb: u32) -> u16 {
     let shift = 3 * wb;
     ((sum + (1i64 << (shift - 1))) >> shift) as u16
 }

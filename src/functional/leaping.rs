@@ -25,9 +25,9 @@ pub enum SampleValue {
     /// Iso mode: a sample read only to test it against the iso value (a marching sample or a
     /// refinement sample); it composites nothing.
     Probe,
-    /// Iso mode: the hit, composited opaque in the iso colour, shaded at this (refined)
-    /// position.
-    Surface { at: [i64; 3] },
+    /// Iso mode: the hit, composited opaque in the iso colour, shaded at the (refined)
+    /// surface position (`SkipState::surface`, `SkipState::sample_position`).
+    Surface,
 }
 
 impl SampleValue {
@@ -37,7 +37,7 @@ impl SampleValue {
         match self {
             SampleValue::Interpolated => 1,
             SampleValue::Region { steps, .. } => steps as u64,
-            SampleValue::Probe | SampleValue::Surface { .. } => 1,
+            SampleValue::Probe | SampleValue::Surface => 1,
         }
     }
 }
@@ -50,6 +50,29 @@ pub struct SkipState {
     pub region: Option<u16>,
     /// Iso mode: the bisection interval while the ray refines its hit.
     pub bisection: Option<Bisection>,
+    /// Iso mode: where the surface was found, once a step returned `SampleValue::Surface`.
+    /// Kept here rather than in the value so that steps stay small enough for registers.
+    pub surface: [i64; 3],
+}
+
+impl SkipState {
+    /// Where the sample of a step with `value` at `pos` is classified and shaded: `pos`, or
+    /// for the iso surface the surface position (the upper end of its bisection interval).
+    #[inline(always)]
+    pub fn sample_position(&self, value: SampleValue, pos: [i64; 3]) -> [i64; 3] {
+        match value {
+            SampleValue::Surface => self.surface,
+            _ => pos,
+        }
+    }
+
+    /// The position after a step that `bisects`: the midpoint of the bisection interval.
+    pub fn midpoint(&self) -> [i64; 3] {
+        let b = self
+            .bisection
+            .expect("a step that bisects leaves its interval in the state");
+        crate::functional::arith::midpoint(b.lo, b.hi)
+    }
 }
 
 /// Iso hitpoint refinement of one ray: the density at `lo` is below the iso value, at `hi`
@@ -74,9 +97,10 @@ pub struct Step {
     /// The advance is read from this sample's own words (leap values): in the cycle model the
     /// ray may not issue again until they are back from memory.
     pub waits_for_words: bool,
-    /// Iso refinement: the ray's next position is this bisection midpoint instead of
-    /// P + advance·V (its sample index stays).
-    pub next: Option<[i64; 3]>,
+    /// Iso refinement: the ray's next position is the midpoint of its bisection interval
+    /// (`SkipState::midpoint`) instead of P + advance·V (its sample index stays). A flag, not
+    /// the position: the step stays small enough for registers in the ray loop.
+    pub bisects: bool,
     /// Iso mode: the ray ends after this step (its surface is found).
     pub ends_ray: bool,
     /// Iso mode: a refinement sample (counted in `RayRecord::refinement_samples` too).
@@ -90,7 +114,7 @@ impl Step {
         advance: 1,
         value: SampleValue::Interpolated,
         waits_for_words: false,
-        next: None,
+        bisects: false,
         ends_ray: false,
         refinement: false,
     };
@@ -295,6 +319,8 @@ pub struct LeapValueLeaping<'a> {
     /// The words' density fields (homogeneous leaping's density volume); None for empty-region
     /// leaping, which never reads them.
     densities: Option<&'a [u16]>,
+    /// The packed cells (`LeapCells::Packed`): the same densities in their low bytes.
+    packed: Option<&'a [u16]>,
     pos_frac_bits: u32,
 }
 
@@ -303,6 +329,7 @@ impl<'a> LeapValueLeaping<'a> {
         LeapValueLeaping {
             volume,
             densities: volume.densities.as_ref().map(|v| &v.data[..]),
+            packed: volume.packed_cells().map(|c| &c[..]),
             pos_frac_bits,
         }
     }
@@ -320,9 +347,10 @@ impl<'a> LeapValueLeaping<'a> {
     /// The density field of word `i`.
     #[inline(always)]
     fn density(&self, i: usize) -> u16 {
-        match self.densities {
-            Some(d) => d[i],
-            None => self.volume.layout.decode(self.volume.words[i]).density,
+        match (self.packed, self.densities) {
+            (Some(cells), Some(_)) => cells[i] & 0xFF,
+            (_, Some(d)) => d[i],
+            (_, None) => self.volume.layout.decode(self.volume.words[i]).density,
         }
     }
 
@@ -357,7 +385,7 @@ impl SpaceSkipper for LeapValueLeaping<'_> {
         let nearest = self.nearest(pos);
         match self.volume.regions {
             LeapRegions::Empty => Step {
-                advance: self.volume.leap(nearest).unwrap_or(1).max(1) as u64,
+                advance: self.volume.empty_region_advance(nearest) as u64,
                 waits_for_words: true,
                 ..Step::SAMPLE
             },

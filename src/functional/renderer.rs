@@ -4,8 +4,8 @@
 //! each); the published cost is one step per 12.5 ns (`clock.step_time_ns`).
 
 use super::arith::{
-    interpolate, interpolate_exact, iso_threshold, midpoint, Accumulator, ClassificationTable,
-    Compositor, Neighbourhood,
+    interpolate, interpolate_exact, interpolate_low_bytes, iso_threshold, Accumulator,
+    ClassificationTable, Compositor, Neighbourhood,
 };
 use std::borrow::Cow;
 
@@ -90,6 +90,10 @@ pub struct FixedRenderer<'a> {
     pub distance: Option<DistanceVolume>,
     /// The voxel words with leap values, with `Leaping::LeapValues`.
     pub leap_values: Option<LeapValueVolume>,
+    /// Leap values over 8-bit densities: their packed cells, which the renderer interpolates
+    /// instead of the volume (same densities; the leap decision then reads a cache line the
+    /// sample reads anyway).
+    packed_cells: Option<std::sync::Arc<[u16]>>,
     /// Per-voxel quantised gradients, present when shading.
     pub gradients: Option<GradientVolume>,
     /// Ray start and end (`[bricks]`, `[clip]`, `[geometry]`); None when all are off.
@@ -223,7 +227,9 @@ impl<'a> FixedRenderer<'a> {
             }
             false => None,
         };
+        let packed_cells = leap_values.as_ref().and_then(|l| l.packed_cells().cloned());
         Ok(FixedRenderer {
+            packed_cells,
             blocks,
             ray_range,
             iso,
@@ -265,8 +271,15 @@ impl<'a> FixedRenderer<'a> {
         }
     }
 
+    /// Renders a frame with the configured skipper. Each strategy gets its own ray loop
+    /// (`render_with` is generic over it), so no step dispatches on the strategy.
     pub fn render(&self, camera: &Camera) -> Frame {
-        self.render_with(camera, &self.skipper())
+        match self.skipper() {
+            ConfiguredSkipper::None(s) => self.render_with(camera, &s),
+            ConfiguredSkipper::Occupancy(s) => self.render_with(camera, &s),
+            ConfiguredSkipper::Distance(s) => self.render_with(camera, &s),
+            ConfiguredSkipper::LeapValues(s) => self.render_with(camera, &s),
+        }
     }
 
     pub fn render_with<S: SpaceSkipper>(&self, camera: &Camera, skipper: &S) -> Frame {
@@ -331,13 +344,16 @@ impl<'a> FixedRenderer<'a> {
             }
         }
         let (rgba, pos) = match value {
-            SampleValue::Interpolated => (
-                self.table.lookup(interpolate(&self.volume, pos, pf, wb)),
-                pos,
-            ),
+            SampleValue::Interpolated => {
+                let density = match &self.packed_cells {
+                    Some(cells) => interpolate_low_bytes(cells, self.volume.dims, pos, pf, wb),
+                    None => interpolate(&self.volume, pos, pf, wb),
+                };
+                (self.table.lookup(density), pos)
+            }
             SampleValue::Region { density, .. } => (self.table.lookup(density), pos),
             SampleValue::Probe => return [0; 4],
-            SampleValue::Surface { at } => (self.iso_rgba, at),
+            SampleValue::Surface => (self.iso_rgba, pos),
         };
         match &self.gradients {
             Some(gradients) if rgba[3] != 0 => {
@@ -385,8 +401,9 @@ impl<'a> FixedRenderer<'a> {
             };
             if b.left == 0 {
                 state.bisection = None;
+                state.surface = b.hi;
                 return Step {
-                    value: SampleValue::Surface { at: b.hi },
+                    value: SampleValue::Surface,
                     ends_ray: true,
                     ..refinement
                 };
@@ -395,7 +412,7 @@ impl<'a> FixedRenderer<'a> {
             return Step {
                 value: SampleValue::Probe,
                 waits_for_words: true,
-                next: Some(midpoint(b.lo, b.hi)),
+                bisects: true,
                 ..refinement
             };
         }
@@ -412,9 +429,10 @@ impl<'a> FixedRenderer<'a> {
         if iso.refinement_steps == 0 || (pos == ray.start && !ray.refinable_start) {
             // No refinement, or no position before the first (outside the box, or cut by
             // clipping or geometry): the surface at the hit.
+            state.surface = pos;
             return Step {
                 advance: 1,
-                value: SampleValue::Surface { at: pos },
+                value: SampleValue::Surface,
                 waits_for_words: true,
                 ends_ray: true,
                 ..Step::SAMPLE
@@ -430,7 +448,7 @@ impl<'a> FixedRenderer<'a> {
             advance: 0,
             value: SampleValue::Probe,
             waits_for_words: true,
-            next: Some(midpoint(lo, pos)),
+            bisects: true,
             ..Step::SAMPLE
         }
     }
@@ -455,7 +473,11 @@ impl<'a> FixedRenderer<'a> {
             if step.sample
                 && self.compositor.composite_steps(
                     &mut acc,
-                    self.classify_value(pos, step.value, ray.light),
+                    self.classify_value(
+                        state.sample_position(step.value, pos),
+                        step.value,
+                        ray.light,
+                    ),
                     step.value.steps() as u32,
                 )
             {
@@ -467,8 +489,8 @@ impl<'a> FixedRenderer<'a> {
             if step.ends_ray {
                 break;
             }
-            if let Some(next) = step.next {
-                pos = next;
+            if step.bisects {
+                pos = state.midpoint();
                 continue;
             }
             k += step.advance;

@@ -26,7 +26,7 @@ use std::time::Duration;
 pub use classify::{classify, Classification, GuardDistance, VoxelClass};
 pub use distance::{distance_steps, distance_volume, verify_distance_volume, DistanceVolume};
 pub use leap::{leap_steps, leap_values, verify_leap_values, LeapValues};
-pub use rendering::{LeapValueStats, LeapValueVolume};
+pub use rendering::{LeapCells, LeapValueStats, LeapValueVolume};
 pub use segment::{range_from_fraction, segment, Region, Segmentation, SegmentationParams};
 pub use word::{encode_volume, DecodedWord, EncodedVolume, VolumeWord};
 

@@ -2,6 +2,7 @@
 //! transfer function, reduced to what the ray loop needs (the words, and for homogeneous
 //! leaping the density fields as a volume). docs/model.md, "Leap values in the volume".
 
+use std::sync::Arc;
 use std::time::Duration;
 
 use super::VolumeWord;
@@ -18,14 +19,26 @@ pub struct LeapValueVolume {
     pub dims: [usize; 3],
     /// One word per voxel, x fastest.
     pub words: Vec<u32>,
-    /// The words' flag and leap fields as the ray loop reads them, one byte per voxel (see
-    /// `leap_code`): a quarter of the words' footprint, so that the volume and its leap fields
-    /// stay in the host's cache (the ray loop's speed is bound by cache misses).
-    pub leap_codes: Vec<u8>,
+    /// The words' flag and leap fields as the ray loop reads them (see `leap_code`), with the
+    /// sampled densities when those fit a byte.
+    pub cells: LeapCells,
     /// Homogeneous leaping: the density fields (region voxels hold their region's mean), the
     /// volume the renderer interpolates. None for empty-region leaping (densities unchanged).
     pub densities: Option<Volume>,
     pub stats: LeapValueStats,
+}
+
+/// The ray loop's copy of the words' flag and leap fields, one byte per voxel (`leap_code`):
+/// the host's cache, not the words, bounds the ray loop's speed, so it reads as few bytes as
+/// it can and, where it can, reads them from the cache lines its interpolation reads anyway.
+#[derive(Clone, Debug)]
+pub enum LeapCells {
+    /// Sampled densities of at most 8 bits: one u16 per voxel, the density the renderer
+    /// interpolates in the low byte and the leap code in the high byte. The renderer
+    /// interpolates these cells instead of the volume (`FixedRenderer`).
+    Packed(Arc<[u16]>),
+    /// Wider densities: the leap codes alone, one byte per voxel beside the volume.
+    Codes(Vec<u8>),
 }
 
 /// What preprocessing produced and what it cost.
@@ -135,17 +148,25 @@ impl LeapValueVolume {
                 sum += l as u64;
             }
         }
-        let leap_codes = words
-            .iter()
-            .map(|&w| leap_code(layout.decode(w).leap))
-            .collect();
+        let codes = words.iter().map(|&w| leap_code(layout.decode(w).leap));
+        let sampled = densities.as_ref().unwrap_or(volume);
+        let cells = if sampled.max_value() <= u8::MAX as u16 {
+            LeapCells::Packed(
+                codes
+                    .zip(&sampled.data)
+                    .map(|(code, &density)| (code as u16) << 8 | density)
+                    .collect(),
+            )
+        } else {
+            LeapCells::Codes(codes.collect())
+        };
         let elapsed = started.elapsed();
         Ok(LeapValueVolume {
             regions: config.regions,
             layout,
             dims: volume.dims,
             words,
-            leap_codes,
+            cells,
             densities,
             stats: LeapValueStats {
                 range,
@@ -162,10 +183,43 @@ impl LeapValueVolume {
     /// The leap field of voxel `index`: None when its word is not flagged, else its leap value.
     #[inline(always)]
     pub fn leap(&self, index: usize) -> Option<u32> {
-        match self.leap_codes[index] {
+        match self.code(index) {
             UNFLAGGED => None,
             LONG_LEAP => self.layout.decode(self.words[index]).leap,
             code => Some(code as u32 - 1),
+        }
+    }
+
+    /// The positions a ray advances after sampling voxel `index`'s word under empty-region
+    /// leaping: its leap value L when flagged (at least 1), else 1. Arithmetic on the leap code
+    /// rather than a branch on the flag: whether a voxel leaps is the data's pattern, which a
+    /// branch predictor cannot learn, and the ray's next address hangs on it.
+    #[inline(always)]
+    pub fn empty_region_advance(&self, index: usize) -> u32 {
+        let code = self.code(index);
+        if code == LONG_LEAP {
+            return self.leap(index).unwrap_or(1).max(1);
+        }
+        // 0 (unflagged) and 1 (L = 0) give 1; L + 1 gives L.
+        (code as u32).saturating_sub(1).max(1)
+    }
+
+    /// Voxel `index`'s leap code (`leap_code`).
+    #[inline(always)]
+    fn code(&self, index: usize) -> u8 {
+        match &self.cells {
+            LeapCells::Packed(cells) => (cells[index] >> 8) as u8,
+            LeapCells::Codes(codes) => codes[index],
+        }
+    }
+
+    /// The packed cells (density in the low byte, leap code in the high byte), when the
+    /// sampled densities fit a byte.
+    #[inline(always)]
+    pub fn packed_cells(&self) -> Option<&Arc<[u16]>> {
+        match &self.cells {
+            LeapCells::Packed(cells) => Some(cells),
+            LeapCells::Codes(_) => None,
         }
     }
 
@@ -217,10 +271,12 @@ mod tests {
             regions: LeapRegions::Empty,
             layout,
             dims: [leaps.len(), 1, 1],
-            leap_codes: words
-                .iter()
-                .map(|&w| leap_code(layout.decode(w).leap))
-                .collect(),
+            cells: LeapCells::Codes(
+                words
+                    .iter()
+                    .map(|&w| leap_code(layout.decode(w).leap))
+                    .collect(),
+            ),
             words,
             densities: None,
             stats: LeapValueStats::default(),
@@ -228,6 +284,23 @@ mod tests {
         for (i, &l) in leaps.iter().enumerate() {
             assert_eq!(volume.leap(i), l, "voxel {i}");
         }
-        assert_eq!(volume.leap_codes[5], LONG_LEAP);
+        assert!(matches!(&volume.cells, LeapCells::Codes(c) if c[5] == LONG_LEAP));
+        // The same words packed beside 8-bit densities read back the same.
+        let packed = LeapValueVolume {
+            cells: LeapCells::Packed(
+                volume
+                    .words
+                    .iter()
+                    .map(|&w| (leap_code(layout.decode(w).leap) as u16) << 8 | 7)
+                    .collect(),
+            ),
+            ..volume.clone()
+        };
+        for (i, &l) in leaps.iter().enumerate() {
+            assert_eq!(packed.leap(i), l, "packed voxel {i}");
+            let advance = l.unwrap_or(1).max(1);
+            assert_eq!(volume.empty_region_advance(i), advance, "voxel {i}");
+            assert_eq!(packed.empty_region_advance(i), advance, "packed voxel {i}");
+        }
     }
 }
