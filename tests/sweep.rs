@@ -446,3 +446,77 @@ fn another_experiment_into_a_used_folder_is_refused() {
     assert!(again.status.success());
     assert_eq!(sorted_lines(&out.join("results.jsonl")), results);
 }
+
+/// The highest resident memory of a running process so far (VmHWM), in KiB; None once it
+/// has exited.
+fn peak_kib(pid: u32) -> Option<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+/// The dry run streams the runs instead of expanding them (issue 17, item 4): 100,000 runs
+/// are counted within a 64 MiB budget that a real expansion of them (4 KiB each) is refused,
+/// and the process stays small while it counts (the materialised expansion took about 160 MB).
+#[test]
+fn a_dry_run_streams_its_runs_in_bounded_memory() {
+    let dir = temp_dir("stream");
+    let values: Vec<String> = (1..=100).map(|v| v.to_string()).collect();
+    let exp = write_experiment(
+        &dir,
+        &format!(
+            "name = \"big\"\ndatasets = [\"phantom:sphere:8\"]\ntf = [\"zero\"]\n\
+             modes = [\"none\"]\nmodels = [\"step\"]\n[frames]\norbit = 1000\nsize = \"4x4\"\n\
+             [axes]\n\"ray_queue.rays\" = [{}]\n",
+            values.join(", ")
+        ),
+    );
+    let out = dir.join("out");
+    let sweep = |dry: bool| {
+        let mut cmd = Command::new(BIN);
+        cmd.args([
+            "sweep",
+            exp.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .env("VIZSIM_MEMORY_BUDGET", "64M")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+        if dry {
+            cmd.arg("--dry-run");
+        }
+        cmd
+    };
+    let mut child = sweep(true).spawn().unwrap();
+    let (pid, start) = (child.id(), Instant::now());
+    let mut peak = 0;
+    while child.try_wait().unwrap().is_none() {
+        peak = peak.max(peak_kib(pid).unwrap_or(0));
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "the dry run hung"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let output = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        output.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(
+        stdout.contains("big: 100000 runs (100000 step model"),
+        "{stdout}"
+    );
+    assert!(peak < 64 << 10, "the dry run peaked at {peak} KiB");
+    let real = sweep(false).output().unwrap();
+    let stderr = String::from_utf8_lossy(&real.stderr);
+    assert!(!real.status.success());
+    assert!(
+        stderr.contains("expanding 100000 runs") && stderr.contains("budget of 64.0 MiB"),
+        "{stderr}"
+    );
+    assert!(!out.exists(), "the refused sweep wrote its folder");
+}

@@ -307,8 +307,17 @@ pub fn estimate_seconds(expansion: &Expansion, runs: &[&RunSpec], threads: usize
 
 /// One run's estimated time on one core, in seconds (see `estimate_seconds`).
 fn estimated_run_seconds(expansion: &Expansion, run: &RunSpec) -> f64 {
+    run_seconds(&expansion.volumes, run)
+}
+
+/// One run's estimated time on one core, in seconds, from the experiment's volumes (the dry
+/// run sums these as it streams the runs).
+pub fn run_seconds(
+    volumes: &BTreeMap<String, std::sync::Arc<crate::volume::Volume>>,
+    run: &RunSpec,
+) -> f64 {
     let desc = &run.run;
-    let dims = expansion.volumes[&desc.dataset].dims;
+    let dims = volumes[&desc.dataset].dims;
     let largest = *dims.iter().max().unwrap_or(&1) as f64;
     let factor = if run.mode.subcube > 0 {
         0.4

@@ -29,6 +29,53 @@ pub fn read_lines(path: &Path) -> Result<Vec<(Value, String)>> {
     Ok(scan(path)?.0)
 }
 
+/// The keys of the complete lines of a results file (missing file = none), read line by line
+/// so that only the keys are held (the dry run). A torn last line is left out; a malformed line
+/// elsewhere is an error, as in `read_lines`.
+pub fn result_keys(path: &Path) -> Result<HashSet<String>> {
+    use std::io::BufRead;
+    let file = match File::open(path) {
+        Ok(f) => f,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(HashSet::new()),
+        Err(e) => return Err(Error::io(path, e)),
+    };
+    let mut reader = std::io::BufReader::new(file);
+    let mut keys = HashSet::new();
+    let mut line = Vec::new();
+    let mut number = 0;
+    let mut malformed = None;
+    loop {
+        line.clear();
+        let n = reader
+            .read_until(b'\n', &mut line)
+            .map_err(|e| Error::io(path, e))?;
+        if n == 0 {
+            break;
+        }
+        number += 1;
+        // A malformed line is an error only when another line follows it (else it is torn).
+        if let Some(bad) = malformed.take() {
+            return Err(Error::format(
+                path,
+                format!("line {bad} is not a result line (corrupt file?)"),
+            ));
+        }
+        if line.last() != Some(&b'\n') {
+            break;
+        }
+        let key = serde_json::from_slice::<Value>(&line[..n - 1])
+            .ok()
+            .and_then(|v| v.get("key").and_then(Value::as_str).map(str::to_string));
+        match key {
+            Some(k) => {
+                keys.insert(k);
+            }
+            None => malformed = Some(number),
+        }
+    }
+    Ok(keys)
+}
+
 /// A parsed result line and its text.
 type Line = (Value, String);
 
