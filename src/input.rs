@@ -29,6 +29,25 @@ pub fn open_regular(path: &Path) -> Result<File> {
     File::open(path).map_err(|e| Error::io(path, e))
 }
 
+/// Reads a whole regular file, or None when there is none: the files of a sweep folder
+/// (results, timings, the resolved experiment), which may be missing but must never be a FIFO
+/// or a device (a FIFO would block the read, /dev/zero would never end). Their size is known
+/// up front and checked against the memory budget.
+pub fn read_existing(path: &Path) -> Result<Option<Vec<u8>>> {
+    match std::fs::symlink_metadata(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(Error::io(path, e)),
+        Ok(_) => {}
+    }
+    let mut file = open_regular(path)?;
+    let size = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    crate::budget::check(&format!("reading {}", path.display()), size)?;
+    let mut bytes = Vec::with_capacity(size as usize);
+    file.read_to_end(&mut bytes)
+        .map_err(|e| Error::io(path, e))?;
+    Ok(Some(bytes))
+}
+
 /// Reads a text input: a regular file of at most `MAX_TEXT_BYTES`, as UTF-8.
 pub fn read_text(path: &Path) -> Result<String> {
     let file = open_regular(path)?;

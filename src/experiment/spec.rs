@@ -486,7 +486,7 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
         }
     }
     let base_text = match &experiment.config {
-        Some(p) => crate::input::read_text(p)?,
+        Some(p) => crate::input::read_text(p).map_err(|e| bad("config", e.to_string()))?,
         None => config::DEFAULT_TOML.to_string(),
     };
     let base_name = experiment
@@ -624,6 +624,7 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
         (None, None) => (0..frames.orbit).collect(),
     };
     let size = parse_image_size(&frames.size).map_err(|e| bad("frames.size", e.to_string()))?;
+    crate::run::check_frame_budget(size).map_err(|e| bad("frames.size", e.to_string()))?;
     let projection = match frames.projection.as_str() {
         "ortho" => Projection::Ortho,
         "persp" => Projection::Persp,
