@@ -192,6 +192,32 @@ fn a_killed_sweep_resumes_to_the_same_results() {
         (3..144).contains(&partial),
         "killed in the middle: {partial} of 144 results written"
     );
+    // After a real kill the time of a result is written after the result: every timing line
+    // is whole and belongs to a result, and at most the runs in flight (two threads) lack one.
+    let result_keys: std::collections::HashSet<String> = std::fs::read_to_string(&results)
+        .unwrap()
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .map(|v| v["key"].as_str().unwrap().to_string())
+        .collect();
+    let timing_text = std::fs::read_to_string(killed.join("timing.jsonl")).unwrap();
+    let timed: Vec<String> = timing_text
+        .lines()
+        .map(|l| {
+            let v: serde_json::Value = serde_json::from_str(l).expect("a whole timing line");
+            v["key"].as_str().unwrap().to_string()
+        })
+        .collect();
+    assert!(
+        timed.iter().all(|k| result_keys.contains(k)),
+        "a time without its result"
+    );
+    assert!(
+        timed.len() + 2 >= result_keys.len(),
+        "{} results, {} times",
+        result_keys.len(),
+        timed.len()
+    );
     // Simulate a kill in the middle of a write too: half a line at the end.
     let mut text = std::fs::read_to_string(&results).unwrap();
     text.push_str("{\"key\":\"deadbeef\",\"dataset\":\"phan");
@@ -519,4 +545,121 @@ fn a_dry_run_streams_its_runs_in_bounded_memory() {
         "{stderr}"
     );
     assert!(!out.exists(), "the refused sweep wrote its folder");
+}
+
+/// Files of a folder whose names are hidden temporaries of atomic writes.
+fn temporaries(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .map(|entries| {
+            entries
+                .flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n.starts_with('.') && n.contains(".tmp"))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// SIGKILL during `vizsim merge` (issue 17, "Tests that stay"): whenever the merge is killed,
+/// the merged folder holds either no results or the complete merged results (never a torn
+/// file), results never without their timings, and merging again gives exactly the bytes of
+/// an uninterrupted merge, with the killed merges' temporaries cleaned away.
+#[test]
+fn a_killed_merge_leaves_nothing_torn_and_reruns_to_the_same_bytes() {
+    const RUNS: usize = 30_000;
+    let dir = temp_dir("merge-kill");
+    // Three large synthetic shards (the merge must take long enough to be killed in it),
+    // with a run present in two shards, as after a requeued task.
+    let mut shards = Vec::new();
+    for s in 0..3 {
+        let shard = dir.join(format!("shard{s}"));
+        std::fs::create_dir_all(&shard).unwrap();
+        let (mut results, mut timing) = (String::new(), String::new());
+        for i in (s..RUNS).step_by(3).chain([0]) {
+            let key = format!("{:016x}", (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
+            results.push_str(&format!(
+                "{{\"key\":\"{key}\",\"experiment\":\"big\",\"frame\":{i},\"fps\":{}.5,\"pad\":\"{}\"}}\n",
+                i % 997,
+                "x".repeat(120)
+            ));
+            timing.push_str(&format!("{{\"key\":\"{key}\",\"wall_seconds\":0.{i}}}\n"));
+        }
+        std::fs::write(shard.join("results.jsonl"), results).unwrap();
+        std::fs::write(shard.join("timing.jsonl"), timing).unwrap();
+        std::fs::write(
+            shard.join("experiment.resolved.json"),
+            "{\"experiment\":{\"name\":\"big\"}}\n",
+        )
+        .unwrap();
+        shards.push(shard.display().to_string());
+    }
+    let merge = |out: &Path| {
+        let mut cmd = Command::new(BIN);
+        cmd.arg("merge")
+            .args(&shards)
+            .args(["--out", out.to_str().unwrap()])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null());
+        cmd
+    };
+    let reference = dir.join("reference");
+    let start = Instant::now();
+    assert!(merge(&reference).status().unwrap().success());
+    let whole = start.elapsed();
+    eprintln!("an uninterrupted merge of {RUNS} runs took {whole:?}");
+    let read = |d: &Path, f: &str| std::fs::read(d.join(f)).ok();
+    let expected: Vec<Option<Vec<u8>>> =
+        ["results.jsonl", "timing.jsonl", "experiment.resolved.json"]
+            .iter()
+            .map(|f| read(&reference, f))
+            .collect();
+    assert_eq!(
+        String::from_utf8_lossy(expected[0].as_ref().unwrap())
+            .lines()
+            .count(),
+        RUNS
+    );
+
+    let out = dir.join("killed");
+    let (mut before_results, mut complete) = (0, 0);
+    for k in 0..8 {
+        // Kills spread over the merge's whole duration.
+        let delay = whole.mul_f64(k as f64 / 8.0);
+        let mut child = merge(&out).spawn().unwrap();
+        std::thread::sleep(delay);
+        child.kill().unwrap();
+        child.wait().unwrap();
+        match read(&out, "results.jsonl") {
+            None => before_results += 1,
+            Some(bytes) => {
+                assert!(
+                    bytes == *expected[0].as_ref().unwrap(),
+                    "kill {k}: torn results"
+                );
+                assert!(
+                    read(&out, "timing.jsonl") == expected[1],
+                    "kill {k}: results without their timings"
+                );
+                complete += 1;
+            }
+        }
+        if let Some(bytes) = read(&out, "timing.jsonl") {
+            assert!(
+                bytes == *expected[1].as_ref().unwrap(),
+                "kill {k}: torn timings"
+            );
+        }
+    }
+    assert!(
+        before_results > 0,
+        "no kill hit the merge before it wrote ({complete} complete)"
+    );
+    assert!(merge(&out).status().unwrap().success());
+    for (f, want) in ["results.jsonl", "timing.jsonl", "experiment.resolved.json"]
+        .iter()
+        .zip(&expected)
+    {
+        assert!(read(&out, f) == *want, "{f} differs after the re-run");
+    }
+    assert_eq!(temporaries(&out), Vec::<String>::new(), "temporaries left");
 }
