@@ -1371,3 +1371,33 @@ fn hostile_experiments_results_images_and_numbers() {
     }
     run_all(corpus, 250);
 }
+
+/// `--threads` beyond what a machine can start is refused before the pool is built (the
+/// adversarial trial's `--threads=4294967295` hung trying to start them).
+#[test]
+fn absurd_thread_counts_are_refused() {
+    let mut corpus = Corpus::new("threads");
+    for n in ["0", "4294967295", "18446744073709551615", "-1", "x"] {
+        let dir = corpus.dir();
+        let out = s(&dir.join("x.png"));
+        let args = [
+            &format!("--threads={n}"),
+            "render",
+            "--dataset",
+            "phantom:sphere:8",
+            "--size",
+            "8x8",
+            "-o",
+            &out,
+        ]
+        .map(|a| a.to_string())
+        .to_vec();
+        corpus.add(
+            format!("--threads={n}"),
+            dir,
+            args,
+            &["--threads", "1..=1024"],
+        );
+    }
+    run_all(corpus, 5);
+}
