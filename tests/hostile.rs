@@ -443,3 +443,43 @@ fn a_fifo_output_needs_its_reader() {
     let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
     assert!(kind.is_fifo(), "the FIFO was replaced");
 }
+
+/// A text input is refused before parsing when its parse would exceed the memory budget
+/// (issue 17, item 4: a transfer function of 10^6 points took 2.6 GB): a 4 MiB transfer
+/// function of 90,000 points under a 64 MiB budget.
+#[test]
+fn a_text_input_whose_parse_exceeds_the_budget_is_refused() {
+    let dir = scratch("tf-budget");
+    let tf = dir.join("many.toml");
+    let mut text = String::new();
+    let mut i = 0;
+    while text.len() < 4 << 20 {
+        text += &format!(
+            "[[points]]\nvalue = {}\nrgba = [0, 0, 0, 0]\n",
+            i as f64 * 0.5
+        );
+        i += 1;
+    }
+    std::fs::write(&tf, text).unwrap();
+    let png = dir.join("x.png");
+    let (ok, stderr) = run_with_budget(
+        "64M",
+        &[
+            "render",
+            "--dataset",
+            "phantom:sphere:8",
+            "--size",
+            "8x8",
+            "--tf",
+            tf.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+        ],
+    );
+    assert!(!ok, "rendered with a 4 MiB transfer function under 64 MiB");
+    assert!(
+        stderr.contains("many.toml") && stderr.contains("budget of 64.0 MiB"),
+        "{stderr}"
+    );
+    assert!(!png.exists());
+}
