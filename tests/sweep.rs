@@ -663,3 +663,31 @@ fn a_killed_merge_leaves_nothing_torn_and_reruns_to_the_same_bytes() {
     }
     assert_eq!(temporaries(&out), Vec::<String>::new(), "temporaries left");
 }
+
+/// Issue 17, items 8 and 12, each checked by its message: `12.5` and `12.50` are one axis
+/// value (one run); an empty `[[exclude]]` is refused as such (it used to exclude every run);
+/// when every run is left out for its sub-cube, the error says so instead of blaming
+/// `exclude`.
+#[test]
+fn repeated_values_empty_exclusions_and_left_out_runs_are_named() {
+    let base = "name = \"e\"\ndatasets = [\"phantom:sphere:8\"]\ntf = [\"zero\"]\n\
+                modes = [\"none\"]\nmodels = [\"step\"]\n[frames]\norbit = 1\nsize = \"4x4\"\n";
+    let e = expand(
+        &format!("{base}[axes]\n\"clock.step_time_ns\" = [12.5, 12.50, 10.0]\n"),
+        "floats.toml",
+        None,
+    )
+    .unwrap();
+    assert_eq!((e.runs.len(), e.duplicates), (2, 1));
+    let message = |text: &str| match expand(text, "e.toml", None) {
+        Ok(_) => panic!("accepted: {text}"),
+        Err(err) => err.to_string(),
+    };
+    let empty = message(&format!("{base}[[exclude]]\n"));
+    assert!(empty.contains("an empty [[exclude]] table"), "{empty}");
+    let left_out = message(&base.replace("[\"none\"]", "[\"ert+leap16\"]"));
+    assert!(
+        left_out.contains("left out for sub-cube size") && !left_out.contains("excluded by"),
+        "{left_out}"
+    );
+}
