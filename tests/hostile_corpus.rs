@@ -1001,6 +1001,13 @@ fn hostile_experiments_results_images_and_numbers() {
         ),
         (format!("{EXPERIMENT}[sequence]\nsteps = 1e9\n"), "steps"),
         (
+            EXPERIMENT
+                .replace("[\"step\"]", "[\"cycle\"]")
+                .replace("phantom:sphere:8", "phantom:metaballs:8")
+                + "[sequence]\nsteps = 3\ndt = 3e38\nmap = [\"none\"]\n",
+            "sequence.dt",
+        ),
+        (
             format!("{EXPERIMENT}[sequence]\nsteps = 2\ndt = nan\n"),
             "sequence",
         ),
@@ -1272,6 +1279,20 @@ fn hostile_experiments_results_images_and_numbers() {
                 "none",
             ],
             "steps",
+        ),
+        // dt finite, but the time of a later step overflows (the trial's only panic).
+        (
+            vec![
+                "sequence",
+                "--source",
+                "phantom:metaballs:8",
+                "--size",
+                "8x8",
+                "--dt=3e38",
+                "--map",
+                "none",
+            ],
+            "overflows",
         ),
         (
             vec![

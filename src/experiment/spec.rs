@@ -550,6 +550,17 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
                     format!("{}: must be a finite number above 0", seq.dt),
                 ));
             }
+            // Time steps are f32: the last one's time must be finite too.
+            if !(seq.dt as f32 * (seq.steps - 1) as f32).is_finite() {
+                return Err(bad(
+                    "sequence.dt",
+                    format!(
+                        "{}: the time of step {} overflows; give a smaller dt or fewer steps",
+                        seq.dt,
+                        seq.steps - 1
+                    ),
+                ));
+            }
             if seq.map.is_empty() {
                 return Err(bad(
                     "sequence.map",
