@@ -76,7 +76,13 @@ pub fn difference_image(a: &[[u8; 4]], b: &[[u8; 4]], gain: u32) -> Vec<[u8; 4]>
 
 /// Loads a PNG (or any format the image crate reads) as RGBA8.
 pub fn load_rgba(path: &Path) -> Result<(u32, u32, Vec<[u8; 4]>)> {
-    let img = image::open(path)
+    // Only a regular file: image::open would block on a FIFO. The decoder's own limits bound
+    // the memory a hostile header asks for.
+    let file = crate::input::open_regular(path)?;
+    let img = image::ImageReader::new(std::io::BufReader::new(file))
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, e))?
+        .decode()
         .map_err(|e| Error::format(path, format!("cannot read image: {e}")))?
         .to_rgba8();
     let (w, h) = img.dimensions();

@@ -289,6 +289,15 @@ impl Sequence {
                             "time step dt = {dt}: must be a finite number above 0"
                         )));
                     }
+                    // The last step's time must be finite too (dt = 3e38 overflowed at step 1
+                    // and the phantom generator panicked on t = inf).
+                    let last = spec.time + (steps - 1) as f32 * dt;
+                    if !last.is_finite() {
+                        return Err(Error::Invalid(format!(
+                            "time step dt = {dt}: the time of step {} overflows ({last}); give a                              smaller dt or fewer steps",
+                            steps - 1
+                        )));
+                    }
                     Source::Metaballs { spec, dt }
                 }
                 PhantomKind::Tsdf => {

@@ -51,6 +51,92 @@ fn remove_stale_temporaries(dir: &Path, prefix: &str) {
     }
 }
 
+/// What output bytes go to: a file, or a FIFO opened without blocking (see `open_through`).
+pub struct Sink {
+    file: std::fs::File,
+    /// Writes that would block (the FIFO's reader is slower) are retried, not errors.
+    retry: bool,
+}
+
+impl Sink {
+    fn file(file: std::fs::File) -> Sink {
+        Sink { file, retry: false }
+    }
+
+    pub fn sync_all(&self) -> std::io::Result<()> {
+        self.file.sync_all()
+    }
+}
+
+impl Write for Sink {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        loop {
+            match self.file.write(buf) {
+                Err(e) if self.retry && e.kind() == std::io::ErrorKind::WouldBlock => {
+                    std::thread::sleep(std::time::Duration::from_millis(1))
+                }
+                result => return result,
+            }
+        }
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.file.flush()
+    }
+}
+
+/// Image encoders ask for `Seek`; a file seeks, a FIFO refuses (as the file itself would).
+impl std::io::Seek for Sink {
+    fn seek(&mut self, pos: std::io::SeekFrom) -> std::io::Result<u64> {
+        self.file.seek(pos)
+    }
+}
+
+/// `O_NONBLOCK` where it is known: opening a FIFO for writing without it waits for a reader
+/// forever.
+#[cfg(target_os = "linux")]
+const O_NONBLOCK: Option<i32> = Some(0o4000);
+#[cfg(any(
+    target_os = "macos",
+    target_os = "ios",
+    target_os = "freebsd",
+    target_os = "openbsd",
+    target_os = "netbsd"
+))]
+const O_NONBLOCK: Option<i32> = Some(0x0004);
+#[cfg(not(any(
+    target_os = "linux",
+    target_os = "macos",
+    target_os = "ios",
+    target_os = "freebsd",
+    target_os = "openbsd",
+    target_os = "netbsd"
+)))]
+const O_NONBLOCK: Option<i32> = None;
+
+/// Opens an output that is written through (a device, a FIFO, a dangling symlink). A FIFO is
+/// opened without blocking, so one without a reader is an error (ENXIO), not a process waiting
+/// forever; its writes then wait for the reader instead.
+fn open_through(path: &Path) -> std::io::Result<Sink> {
+    use std::os::unix::fs::{FileTypeExt, OpenOptionsExt};
+    let fifo = std::fs::metadata(path).is_ok_and(|m| m.file_type().is_fifo());
+    let mut options = std::fs::OpenOptions::new();
+    options.write(true).create(true).truncate(true);
+    if let (true, Some(flag)) = (fifo, O_NONBLOCK) {
+        options.custom_flags(flag);
+        return options
+            .open(path)
+            .map(|file| Sink { file, retry: true })
+            .map_err(|e| {
+                std::io::Error::new(
+                    e.kind(),
+                    format!("a FIFO that nobody reads (start its reader first): {e}"),
+                )
+            });
+    }
+    options.open(path).map(Sink::file)
+}
+
 /// How an output path is written.
 enum Target {
     /// A regular file or a new path (a symlink's target, resolved): temporary + rename.
@@ -100,19 +186,14 @@ pub fn check_writable(path: &Path) -> Result<()> {
 
 pub fn write_atomically(
     path: &Path,
-    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+    write: impl FnOnce(&mut std::io::BufWriter<Sink>) -> std::io::Result<()>,
 ) -> Result<()> {
     let real = match target(path)? {
         Target::Atomic(real) => real,
         Target::Through => {
             // Errors at the flush (a full disk: /dev/full) are reported, not lost in a drop.
             let result = (|| {
-                let file = std::fs::OpenOptions::new()
-                    .write(true)
-                    .create(true)
-                    .truncate(true)
-                    .open(path)?;
-                let mut writer = std::io::BufWriter::new(file);
+                let mut writer = std::io::BufWriter::new(open_through(path)?);
                 write(&mut writer)?;
                 writer.flush()
             })();
@@ -123,7 +204,7 @@ pub fn write_atomically(
     let tmp = temporary_path(path)?;
     let result = (|| {
         let file = std::fs::File::create(&tmp)?;
-        let mut writer = std::io::BufWriter::new(file);
+        let mut writer = std::io::BufWriter::new(Sink::file(file));
         write(&mut writer)?;
         writer.flush()?;
         writer.get_ref().sync_all()?;
@@ -153,7 +234,7 @@ pub struct PendingFile {
     path: std::path::PathBuf,
     /// The temporary renamed to `path` on commit; None when `path` is written through.
     tmp: Option<std::path::PathBuf>,
-    writer: std::io::BufWriter<std::fs::File>,
+    writer: std::io::BufWriter<Sink>,
     committed: bool,
 }
 
@@ -166,12 +247,11 @@ impl PendingFile {
             }
             Target::Through => (path.to_path_buf(), None),
         };
-        let file = std::fs::OpenOptions::new()
-            .write(true)
-            .create(true)
-            .truncate(true)
-            .open(tmp.as_ref().unwrap_or(&real))
-            .map_err(|e| Error::io(path, e))?;
+        let file = match &tmp {
+            Some(tmp) => std::fs::File::create(tmp).map(Sink::file),
+            None => open_through(&real),
+        }
+        .map_err(|e| Error::io(path, e))?;
         Ok(PendingFile {
             path: real,
             tmp,

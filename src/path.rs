@@ -111,7 +111,8 @@ impl CameraPath {
     /// Reads and validates a path file.
     pub fn load(file: &Path) -> Result<CameraPath> {
         let name = file.display().to_string();
-        let text = std::fs::read_to_string(file)
+        // Only a regular file of bounded size: a FIFO would block, /dev/zero never end.
+        let text = crate::input::read_text(file)
             .map_err(|e| Error::Invalid(format!("camera path {name}: cannot read: {e}")))?;
         Self::parse(&text, &name)
     }

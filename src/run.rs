@@ -138,10 +138,7 @@ impl RunDescription {
     pub fn validate(&self) -> Result<()> {
         View::parse(&self.view)?;
         check_image_size(self.size.0, self.size.1)?;
-        crate::budget::check(
-            &format!("a {}x{} frame", self.size.0, self.size.1),
-            frame_bytes(self.size),
-        )?;
+        check_frame_budget(self.size)?;
         self.settings().validate()?;
         if let Memory::Ideal { latency } = self.memory {
             if !(1..=MAX_IDEAL_LATENCY).contains(&latency) {
@@ -238,6 +235,11 @@ impl<'v> Prepared<'v> {
 
 /// Bytes one frame of this size holds per pixel: the RGBA8 pixel, its ray record and the cycle
 /// model's per-ray state (an estimate for the memory budget, rounded up).
+/// Refuses a frame whose pixels and ray records would not fit the memory budget.
+pub fn check_frame_budget(size: (u32, u32)) -> Result<()> {
+    crate::budget::check(&format!("a {}x{} frame", size.0, size.1), frame_bytes(size))
+}
+
 fn frame_bytes(size: (u32, u32)) -> u64 {
     size.0 as u64 * size.1 as u64 * (4 + std::mem::size_of::<RayRecord>() as u64 + 96)
 }

@@ -13,7 +13,13 @@ use crate::error::{Error, Result};
 /// Reads a results file (one JSON object per line). A torn last line (a sweep killed while
 /// writing) is ignored; any other malformed line is an error naming the file and line.
 pub fn read_results(path: &Path) -> Result<Vec<Value>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::input::read_existing(path)?.ok_or_else(|| {
+        Error::io(
+            path,
+            std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+        )
+    })?;
+    let text = String::from_utf8(bytes).map_err(|_| Error::format(path, "not UTF-8 text"))?;
     let complete = text.ends_with('\n');
     let lines: Vec<&str> = text.lines().collect();
     let mut out = Vec::with_capacity(lines.len());

@@ -406,3 +406,80 @@ fn requests_over_the_memory_budget_are_refused_up_front() {
     );
     assert!(!out.exists());
 }
+
+/// An output that is a FIFO is written through: without a reader the run fails at once naming
+/// it (it used to wait for a reader forever), with a reader the reader gets the whole file.
+#[test]
+fn a_fifo_output_needs_its_reader() {
+    let dir = scratch("fifo-output");
+    let fifo = dir.join("out.json");
+    mkfifo(&fifo);
+    let png = dir.join("x.png");
+    let args = [
+        "render",
+        "--dataset",
+        "phantom:sphere:8",
+        "--size",
+        "8x8",
+        "-o",
+        png.to_str().unwrap(),
+        "--json",
+        fifo.to_str().unwrap(),
+    ];
+    assert_refused(&args, &["out.json", "FIFO that nobody reads"]);
+    let reader = Command::new("cat")
+        .arg(&fifo)
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Let the reader reach its open() (it counts as the FIFO's reader from there on).
+    std::thread::sleep(Duration::from_millis(300));
+    let (ok, stderr) = run_bounded(&args);
+    assert!(ok, "{stderr}");
+    let json = reader.wait_with_output().unwrap().stdout;
+    let value: serde_json::Value = serde_json::from_slice(&json).expect("the whole JSON");
+    assert!(value.get("run").is_some(), "{value}");
+    use std::os::unix::fs::FileTypeExt;
+    let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
+    assert!(kind.is_fifo(), "the FIFO was replaced");
+}
+
+/// A text input is refused before parsing when its parse would exceed the memory budget
+/// (issue 17, item 4: a transfer function of 10^6 points took 2.6 GB): a 4 MiB transfer
+/// function of 90,000 points under a 64 MiB budget.
+#[test]
+fn a_text_input_whose_parse_exceeds_the_budget_is_refused() {
+    let dir = scratch("tf-budget");
+    let tf = dir.join("many.toml");
+    let mut text = String::new();
+    let mut i = 0;
+    while text.len() < 4 << 20 {
+        text += &format!(
+            "[[points]]\nvalue = {}\nrgba = [0, 0, 0, 0]\n",
+            i as f64 * 0.5
+        );
+        i += 1;
+    }
+    std::fs::write(&tf, text).unwrap();
+    let png = dir.join("x.png");
+    let (ok, stderr) = run_with_budget(
+        "64M",
+        &[
+            "render",
+            "--dataset",
+            "phantom:sphere:8",
+            "--size",
+            "8x8",
+            "--tf",
+            tf.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+        ],
+    );
+    assert!(!ok, "rendered with a 4 MiB transfer function under 64 MiB");
+    assert!(
+        stderr.contains("many.toml") && stderr.contains("budget of 64.0 MiB"),
+        "{stderr}"
+    );
+    assert!(!png.exists());
+}

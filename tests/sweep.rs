@@ -192,6 +192,32 @@ fn a_killed_sweep_resumes_to_the_same_results() {
         (3..144).contains(&partial),
         "killed in the middle: {partial} of 144 results written"
     );
+    // After a real kill the time of a result is written after the result: every timing line
+    // is whole and belongs to a result, and at most the runs in flight (two threads) lack one.
+    let result_keys: std::collections::HashSet<String> = std::fs::read_to_string(&results)
+        .unwrap()
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .map(|v| v["key"].as_str().unwrap().to_string())
+        .collect();
+    let timing_text = std::fs::read_to_string(killed.join("timing.jsonl")).unwrap();
+    let timed: Vec<String> = timing_text
+        .lines()
+        .map(|l| {
+            let v: serde_json::Value = serde_json::from_str(l).expect("a whole timing line");
+            v["key"].as_str().unwrap().to_string()
+        })
+        .collect();
+    assert!(
+        timed.iter().all(|k| result_keys.contains(k)),
+        "a time without its result"
+    );
+    assert!(
+        timed.len() + 2 >= result_keys.len(),
+        "{} results, {} times",
+        result_keys.len(),
+        timed.len()
+    );
     // Simulate a kill in the middle of a write too: half a line at the end.
     let mut text = std::fs::read_to_string(&results).unwrap();
     text.push_str("{\"key\":\"deadbeef\",\"dataset\":\"phan");
@@ -445,4 +471,223 @@ fn another_experiment_into_a_used_folder_is_refused() {
     ]);
     assert!(again.status.success());
     assert_eq!(sorted_lines(&out.join("results.jsonl")), results);
+}
+
+/// The highest resident memory of a running process so far (VmHWM), in KiB; None once it
+/// has exited.
+fn peak_kib(pid: u32) -> Option<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+/// The dry run streams the runs instead of expanding them (issue 17, item 4): 100,000 runs
+/// are counted within a 64 MiB budget that a real expansion of them (4 KiB each) is refused,
+/// and the process stays small while it counts (the materialised expansion took about 160 MB).
+#[test]
+fn a_dry_run_streams_its_runs_in_bounded_memory() {
+    let dir = temp_dir("stream");
+    let values: Vec<String> = (1..=100).map(|v| v.to_string()).collect();
+    let exp = write_experiment(
+        &dir,
+        &format!(
+            "name = \"big\"\ndatasets = [\"phantom:sphere:8\"]\ntf = [\"zero\"]\n\
+             modes = [\"none\"]\nmodels = [\"step\"]\n[frames]\norbit = 1000\nsize = \"4x4\"\n\
+             [axes]\n\"ray_queue.rays\" = [{}]\n",
+            values.join(", ")
+        ),
+    );
+    let out = dir.join("out");
+    let sweep = |dry: bool| {
+        let mut cmd = Command::new(BIN);
+        cmd.args([
+            "sweep",
+            exp.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .env("VIZSIM_MEMORY_BUDGET", "64M")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+        if dry {
+            cmd.arg("--dry-run");
+        }
+        cmd
+    };
+    let mut child = sweep(true).spawn().unwrap();
+    let (pid, start) = (child.id(), Instant::now());
+    let mut peak = 0;
+    while child.try_wait().unwrap().is_none() {
+        peak = peak.max(peak_kib(pid).unwrap_or(0));
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "the dry run hung"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let output = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        output.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(
+        stdout.contains("big: 100000 runs (100000 step model"),
+        "{stdout}"
+    );
+    assert!(peak < 64 << 10, "the dry run peaked at {peak} KiB");
+    let real = sweep(false).output().unwrap();
+    let stderr = String::from_utf8_lossy(&real.stderr);
+    assert!(!real.status.success());
+    assert!(
+        stderr.contains("expanding 100000 runs") && stderr.contains("budget of 64.0 MiB"),
+        "{stderr}"
+    );
+    assert!(!out.exists(), "the refused sweep wrote its folder");
+}
+
+/// Files of a folder whose names are hidden temporaries of atomic writes.
+fn temporaries(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .map(|entries| {
+            entries
+                .flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n.starts_with('.') && n.contains(".tmp"))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// SIGKILL during `vizsim merge` (issue 17, "Tests that stay"): whenever the merge is killed,
+/// the merged folder holds either no results or the complete merged results (never a torn
+/// file), results never without their timings, and merging again gives exactly the bytes of
+/// an uninterrupted merge, with the killed merges' temporaries cleaned away.
+#[test]
+fn a_killed_merge_leaves_nothing_torn_and_reruns_to_the_same_bytes() {
+    const RUNS: usize = 30_000;
+    let dir = temp_dir("merge-kill");
+    // Three large synthetic shards (the merge must take long enough to be killed in it),
+    // with a run present in two shards, as after a requeued task.
+    let mut shards = Vec::new();
+    for s in 0..3 {
+        let shard = dir.join(format!("shard{s}"));
+        std::fs::create_dir_all(&shard).unwrap();
+        let (mut results, mut timing) = (String::new(), String::new());
+        for i in (s..RUNS).step_by(3).chain([0]) {
+            let key = format!("{:016x}", (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
+            results.push_str(&format!(
+                "{{\"key\":\"{key}\",\"experiment\":\"big\",\"frame\":{i},\"fps\":{}.5,\"pad\":\"{}\"}}\n",
+                i % 997,
+                "x".repeat(120)
+            ));
+            timing.push_str(&format!("{{\"key\":\"{key}\",\"wall_seconds\":0.{i}}}\n"));
+        }
+        std::fs::write(shard.join("results.jsonl"), results).unwrap();
+        std::fs::write(shard.join("timing.jsonl"), timing).unwrap();
+        std::fs::write(
+            shard.join("experiment.resolved.json"),
+            "{\"experiment\":{\"name\":\"big\"}}\n",
+        )
+        .unwrap();
+        shards.push(shard.display().to_string());
+    }
+    let merge = |out: &Path| {
+        let mut cmd = Command::new(BIN);
+        cmd.arg("merge")
+            .args(&shards)
+            .args(["--out", out.to_str().unwrap()])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null());
+        cmd
+    };
+    let reference = dir.join("reference");
+    let start = Instant::now();
+    assert!(merge(&reference).status().unwrap().success());
+    let whole = start.elapsed();
+    eprintln!("an uninterrupted merge of {RUNS} runs took {whole:?}");
+    let read = |d: &Path, f: &str| std::fs::read(d.join(f)).ok();
+    let expected: Vec<Option<Vec<u8>>> =
+        ["results.jsonl", "timing.jsonl", "experiment.resolved.json"]
+            .iter()
+            .map(|f| read(&reference, f))
+            .collect();
+    assert_eq!(
+        String::from_utf8_lossy(expected[0].as_ref().unwrap())
+            .lines()
+            .count(),
+        RUNS
+    );
+
+    let out = dir.join("killed");
+    let (mut before_results, mut complete) = (0, 0);
+    for k in 0..8 {
+        // Kills spread over the merge's whole duration.
+        let delay = whole.mul_f64(k as f64 / 8.0);
+        let mut child = merge(&out).spawn().unwrap();
+        std::thread::sleep(delay);
+        child.kill().unwrap();
+        child.wait().unwrap();
+        match read(&out, "results.jsonl") {
+            None => before_results += 1,
+            Some(bytes) => {
+                assert!(
+                    bytes == *expected[0].as_ref().unwrap(),
+                    "kill {k}: torn results"
+                );
+                assert!(
+                    read(&out, "timing.jsonl") == expected[1],
+                    "kill {k}: results without their timings"
+                );
+                complete += 1;
+            }
+        }
+        if let Some(bytes) = read(&out, "timing.jsonl") {
+            assert!(
+                bytes == *expected[1].as_ref().unwrap(),
+                "kill {k}: torn timings"
+            );
+        }
+    }
+    assert!(
+        before_results > 0,
+        "no kill hit the merge before it wrote ({complete} complete)"
+    );
+    assert!(merge(&out).status().unwrap().success());
+    for (f, want) in ["results.jsonl", "timing.jsonl", "experiment.resolved.json"]
+        .iter()
+        .zip(&expected)
+    {
+        assert!(read(&out, f) == *want, "{f} differs after the re-run");
+    }
+    assert_eq!(temporaries(&out), Vec::<String>::new(), "temporaries left");
+}
+
+/// Issue 17, items 8 and 12, each checked by its message: `12.5` and `12.50` are one axis
+/// value (one run); an empty `[[exclude]]` is refused as such (it used to exclude every run);
+/// when every run is left out for its sub-cube, the error says so instead of blaming
+/// `exclude`.
+#[test]
+fn repeated_values_empty_exclusions_and_left_out_runs_are_named() {
+    let base = "name = \"e\"\ndatasets = [\"phantom:sphere:8\"]\ntf = [\"zero\"]\n\
+                modes = [\"none\"]\nmodels = [\"step\"]\n[frames]\norbit = 1\nsize = \"4x4\"\n";
+    let e = expand(
+        &format!("{base}[axes]\n\"clock.step_time_ns\" = [12.5, 12.50, 10.0]\n"),
+        "floats.toml",
+        None,
+    )
+    .unwrap();
+    assert_eq!((e.runs.len(), e.duplicates), (2, 1));
+    let message = |text: &str| match expand(text, "e.toml", None) {
+        Ok(_) => panic!("accepted: {text}"),
+        Err(err) => err.to_string(),
+    };
+    let empty = message(&format!("{base}[[exclude]]\n"));
+    assert!(empty.contains("an empty [[exclude]] table"), "{empty}");
+    let left_out = message(&base.replace("[\"none\"]", "[\"ert+leap16\"]"));
+    assert!(
+        left_out.contains("left out for sub-cube size") && !left_out.contains("excluded by"),
+        "{left_out}"
+    );
 }

@@ -32,7 +32,7 @@ use vizsim::volume::{dataset, Volume};
 )]
 pub struct Cli {
     /// Worker threads (default: all cores). Results are identical for any count.
-    #[arg(long, global = true)]
+    #[arg(long, global = true, value_parser = parse_threads)]
     threads: Option<usize>,
     /// Memory budget, e.g. 8G or 512M: requests known to need more (a volume from its header,
     /// a frame from its size, an experiment from its run count) are refused up front. Default:
@@ -80,6 +80,17 @@ enum Command {
     /// The frame loop of a dynamic sequence (metaballs, TSDF fusion, a folder of time steps):
     /// per step update, map and render cycles, and the frames per second (docs/dynamic.md).
     Sequence(sequence::SequenceArgs),
+}
+
+/// Most worker threads `--threads` takes: a huge count made the thread pool try to start
+/// billions of threads (it hung).
+const MAX_THREADS: usize = 1024;
+
+fn parse_threads(text: &str) -> std::result::Result<usize, String> {
+    match text.trim().parse::<usize>() {
+        Ok(n) if (1..=MAX_THREADS).contains(&n) => Ok(n),
+        _ => Err(format!("`{text}`: expected 1..={MAX_THREADS} threads")),
+    }
 }
 
 pub fn run(cli: Cli) -> Result<()> {

@@ -43,72 +43,85 @@ pub fn run(args: SweepArgs) -> Result<()> {
     use vizsim::experiment::{self, spec, Shard};
     let shard = shard.map(Shard::parse).transpose()?;
     let dir = args.data.dir()?;
-    let mut expansion = spec::load(experiment, dir.as_deref())?;
     if let Some(model) = model {
         anyhow::ensure!(
             model == "step" || model == "cycle",
             "--model {model}: expected `step` or `cycle`"
         );
-        expansion.runs.retain(|r| r.run.model.name() == model);
     }
-    let mine: Vec<&spec::RunSpec> = expansion
-        .runs
-        .iter()
-        .filter(|r| shard.is_none_or(|s| s.contains(r)))
-        .collect();
-    experiment::store::ResultStore::check_same_experiment(out, &expansion.experiment.name)?;
-    let done = experiment::store::read_lines(&out.join(experiment::store::RESULTS))?
-        .into_iter()
-        .filter_map(|(v, _)| v.get("key").and_then(|k| k.as_str()).map(str::to_string))
-        .collect::<std::collections::HashSet<_>>();
-    let pending: Vec<&spec::RunSpec> = mine
-        .iter()
-        .copied()
-        .filter(|r| !done.contains(&r.key))
-        .collect();
-    let count = |model| pending.iter().filter(|r| r.run.model == model).count();
-    let threads = rayon::current_num_threads();
-    let estimate = |model| {
-        let of: Vec<&spec::RunSpec> = pending
-            .iter()
-            .copied()
-            .filter(|r| r.run.model == model)
-            .collect();
-        experiment::estimate_seconds(&expansion, &of, threads)
+    // The dry run streams the runs (only their keys are held, to drop repeats), so it can
+    // count and estimate an experiment whose expansion would not fit in memory; the sweep
+    // needs them all.
+    let plan = spec::load_plan(experiment, dir.as_deref())?;
+    let name = plan.experiment.name.clone();
+    experiment::store::ResultStore::check_same_experiment(out, &name)?;
+    let done = experiment::store::result_keys(&out.join(experiment::store::RESULTS))?;
+    let mut tally = Tally::default();
+    let mut count = |r: &spec::RunSpec, volumes: &spec::Volumes| {
+        if model.is_some_and(|m| r.run.model.name() != m) || shard.is_some_and(|s| !s.contains(r)) {
+            return;
+        }
+        tally.mine += 1;
+        tally.raised += !r.fits_default_sram as usize;
+        if !done.contains(&r.key) {
+            let m = (r.run.model == spec::Model::Cycle) as usize;
+            tally.pending[m] += 1;
+            tally.seconds[m] += experiment::run_seconds(volumes, r);
+        }
     };
+    let (expansion, omitted) = if dry_run {
+        let omitted = plan.for_each_run(|r| {
+            count(&r, &plan.volumes);
+            Ok(())
+        })?;
+        (None, omitted)
+    } else {
+        let mut e = spec::expand_plan(plan)?;
+        for r in &e.runs {
+            count(r, &e.volumes);
+        }
+        e.runs
+            .retain(|r| model.is_none_or(|m| r.run.model.name() == m));
+        let omitted = spec::Omitted {
+            skipped: e.skipped.clone(),
+            duplicates: e.duplicates,
+        };
+        (Some(e), omitted)
+    };
+    let threads = rayon::current_num_threads();
+    let per_thread = |seconds: f64| duration_text(seconds / threads.max(1) as f64);
     println!(
-        "{}: {} runs{} ({} step model, {} cycle model to run; {} already done in {}); \
+        "{name}: {} runs{} ({} step model, {} cycle model to run; {} already done in {}); \
          estimate {} + {} on {threads} threads (step + cycle model; rough)",
-        expansion.experiment.name,
-        mine.len(),
+        tally.mine,
         shard
             .map(|s| format!(" in shard {}/{}", s.index, s.count))
             .unwrap_or_default(),
-        count(spec::Model::Step),
-        count(spec::Model::Cycle),
-        mine.len() - pending.len(),
+        tally.pending[0],
+        tally.pending[1],
+        tally.mine - tally.pending[0] - tally.pending[1],
         out.display(),
-        duration_text(estimate(spec::Model::Step)),
-        duration_text(estimate(spec::Model::Cycle)),
+        per_thread(tally.seconds[0]),
+        per_thread(tally.seconds[1]),
     );
-    if expansion.duplicates > 0 {
+    if omitted.duplicates > 0 {
         println!(
             "  {} runs are listed more than once (repeated datasets, frames or axis values): each runs once",
-            expansion.duplicates
+            omitted.duplicates
         );
     }
-    for s in &expansion.skipped {
+    for s in &omitted.skipped {
         println!("  left out: {} {}: {}", s.dataset, s.mode, s.reason);
     }
-    let raised = mine.iter().filter(|r| !r.fits_default_sram).count();
-    if raised > 0 {
+    if tally.raised > 0 {
         println!(
-            "  {raised} runs with occupancy.sram_bits raised (map larger than the default SRAM)"
+            "  {} runs with occupancy.sram_bits raised (map larger than the default SRAM)",
+            tally.raised
         );
     }
-    if dry_run {
+    let Some(expansion) = expansion else {
         return Ok(());
-    }
+    };
     let progress = !quiet && std::io::stderr().is_terminal();
     let summary = experiment::sweep(&expansion, out, shard, progress)?;
     println!(
@@ -119,6 +132,17 @@ pub fn run(args: SweepArgs) -> Result<()> {
         out.join(experiment::store::RESULTS).display()
     );
     Ok(())
+}
+
+/// What the sweep's first line reports: the runs of this shard and model, those still to run
+/// per model (step, cycle) with their estimated seconds on one core, and how many had their
+/// SRAM raised.
+#[derive(Default)]
+struct Tally {
+    mine: usize,
+    pending: [usize; 2],
+    seconds: [f64; 2],
+    raised: usize,
 }
 
 /// A duration as a person reads it: seconds under a minute, minutes under two hours, else hours.

@@ -307,8 +307,17 @@ pub fn estimate_seconds(expansion: &Expansion, runs: &[&RunSpec], threads: usize
 
 /// One run's estimated time on one core, in seconds (see `estimate_seconds`).
 fn estimated_run_seconds(expansion: &Expansion, run: &RunSpec) -> f64 {
+    run_seconds(&expansion.volumes, run)
+}
+
+/// One run's estimated time on one core, in seconds, from the experiment's volumes (the dry
+/// run sums these as it streams the runs).
+pub fn run_seconds(
+    volumes: &BTreeMap<String, std::sync::Arc<crate::volume::Volume>>,
+    run: &RunSpec,
+) -> f64 {
     let desc = &run.run;
-    let dims = expansion.volumes[&desc.dataset].dims;
+    let dims = volumes[&desc.dataset].dims;
     let largest = *dims.iter().max().unwrap_or(&1) as f64;
     let factor = if run.mode.subcube > 0 {
         0.4
@@ -334,6 +343,13 @@ fn estimated_run_seconds(expansion: &Expansion, run: &RunSpec) -> f64 {
 /// run was timed in several (wall times differ between machines; results do not).
 pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
     let mut lines: BTreeMap<String, String> = BTreeMap::new();
+    // A misspelt shard folder must not merge as "no results".
+    if let Some(dir) = inputs.iter().find(|d| !d.is_dir()) {
+        return Err(Error::Invalid(format!(
+            "{}: no such sweep folder",
+            dir.display()
+        )));
+    }
     for dir in inputs {
         let path = dir.join(store::RESULTS);
         for (line, text) in store::read_lines(&path)? {
@@ -355,8 +371,7 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
             }
         }
     }
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    write_lines(&out.join(store::RESULTS), &lines)?;
+    // Everything is read before anything is written: an unreadable input leaves no output.
     let mut timings: BTreeMap<String, String> = BTreeMap::new();
     for dir in inputs {
         for (line, text) in store::read_timing(&dir.join(store::TIMING))? {
@@ -366,19 +381,25 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
             }
         }
     }
+    let resolved = match inputs.first() {
+        Some(first) if first.join(store::RESOLVED) != out.join(store::RESOLVED) => {
+            crate::input::read_existing(&first.join(store::RESOLVED))?
+        }
+        _ => None,
+    };
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    // Each file is written atomically, and results.jsonl last: a merge killed half-way leaves
+    // the previous results (or none), never results without their timings.
     if !timings.is_empty() {
         write_lines(&out.join(store::TIMING), &timings)?;
     }
-    if let Some(first) = inputs.first() {
-        let resolved = first.join(store::RESOLVED);
-        if resolved.exists() && out.join(store::RESOLVED) != resolved {
-            let text = std::fs::read(&resolved).map_err(|e| Error::io(&resolved, e))?;
-            crate::output::write_atomically(&out.join(store::RESOLVED), |w| {
-                use std::io::Write;
-                w.write_all(&text)
-            })?;
-        }
+    if let Some(text) = resolved {
+        crate::output::write_atomically(&out.join(store::RESOLVED), |w| {
+            use std::io::Write;
+            w.write_all(&text)
+        })?;
     }
+    write_lines(&out.join(store::RESULTS), &lines)?;
     Ok(lines.len())
 }
 

@@ -390,7 +390,7 @@ pub struct Expansion {
     pub skipped: Vec<Skipped>,
     /// Runs listed more than once in the file, dropped (each runs once).
     pub duplicates: usize,
-    pub volumes: BTreeMap<String, Arc<Volume>>,
+    pub volumes: Volumes,
 }
 
 /// The most runs one experiment may expand to: 10^6 runs took 2.2 GB to expand.
@@ -419,6 +419,13 @@ pub fn load(path: &Path, data_dir: Option<&Path>) -> Result<Expansion> {
     expand(&text, &path.display().to_string(), data_dir)
 }
 
+/// Reads and validates an experiment file without expanding it (`Plan::for_each_run` streams
+/// the runs: the dry run).
+pub fn load_plan(path: &Path, data_dir: Option<&Path>) -> Result<Plan> {
+    let text = crate::input::read_text(path)?;
+    plan(&text, &path.display().to_string(), data_dir)
+}
+
 fn toml_to_json(value: &toml::Value) -> serde_json::Value {
     serde_json::to_value(value).unwrap_or(serde_json::Value::Null)
 }
@@ -434,6 +441,37 @@ fn map_bits(dims: [usize; 3], subcube: usize, hierarchy: bool) -> u64 {
 }
 
 pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expansion> {
+    expand_plan(plan(text, source, data_dir)?)
+}
+
+/// The experiment's datasets by name.
+pub type Volumes = BTreeMap<String, Arc<Volume>>;
+
+/// Expands a validated experiment into all its runs.
+pub fn expand_plan(plan: Plan) -> Result<Expansion> {
+    // Expanded runs hold their resolved configuration: refused up front when over the budget.
+    crate::budget::check(
+        &format!("expanding {} runs", plan.count),
+        plan.count * BYTES_PER_RUN,
+    )?;
+    let mut runs = Vec::new();
+    let omitted = plan.for_each_run(|run| {
+        runs.push(run);
+        Ok(())
+    })?;
+    Ok(Expansion {
+        experiment: plan.experiment,
+        source: plan.source,
+        runs,
+        skipped: omitted.skipped,
+        duplicates: omitted.duplicates,
+        volumes: plan.volumes,
+    })
+}
+
+/// Validates an experiment and loads its datasets: everything a sweep checks before it writes
+/// anything. The runs themselves come from `Plan::for_each_run`, one at a time.
+pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
     let experiment: ExperimentFile = toml::from_str(text)
         .map_err(|e| Error::format(source, format!("invalid experiment: {e}")))?;
     let bad = |field: &str, message: String| Error::config(source, field, message);
@@ -448,7 +486,7 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
         }
     }
     let base_text = match &experiment.config {
-        Some(p) => crate::input::read_text(p)?,
+        Some(p) => crate::input::read_text(p).map_err(|e| bad("config", e.to_string()))?,
         None => config::DEFAULT_TOML.to_string(),
     };
     let base_name = experiment
@@ -510,6 +548,17 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
                 return Err(bad(
                     "sequence.dt",
                     format!("{}: must be a finite number above 0", seq.dt),
+                ));
+            }
+            // Time steps are f32: the last one's time must be finite too.
+            if !(seq.dt as f32 * (seq.steps - 1) as f32).is_finite() {
+                return Err(bad(
+                    "sequence.dt",
+                    format!(
+                        "{}: the time of step {} overflows; give a smaller dt or fewer steps",
+                        seq.dt,
+                        seq.steps - 1
+                    ),
                 ));
             }
             if seq.map.is_empty() {
@@ -586,6 +635,7 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
         (None, None) => (0..frames.orbit).collect(),
     };
     let size = parse_image_size(&frames.size).map_err(|e| bad("frames.size", e.to_string()))?;
+    crate::run::check_frame_budget(size).map_err(|e| bad("frames.size", e.to_string()))?;
     let projection = match frames.projection.as_str() {
         "ortho" => Projection::Ortho,
         "persp" => Projection::Persp,
@@ -684,23 +734,6 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
             ),
         ));
     }
-    crate::budget::check(&format!("expanding {count} runs"), count * BYTES_PER_RUN)?;
-    // Cartesian product over groups.
-    let mut combos: Vec<Vec<(String, toml::Value)>> = vec![Vec::new()];
-    for group in &groups {
-        let len = axes[group[0]].1.len();
-        let mut next = Vec::with_capacity(combos.len() * len);
-        for combo in &combos {
-            for j in 0..len {
-                let mut c = combo.clone();
-                for &m in group {
-                    c.push((axes[m].0.clone(), axes[m].1[j].clone()));
-                }
-                next.push(c);
-            }
-        }
-        combos = next;
-    }
     // Every axis value alone must be a valid setting of its field.
     for (path, values) in &axes {
         for value in values {
@@ -743,201 +776,13 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
         }
     }
 
-    let view_of = |frame: u32| match &frames.path {
-        Some(file) => format!("path:{file}:{frame}/{}", frames.orbit),
-        None => format!("orbit:{frame}/{}", frames.orbit),
-    };
     if frames.path.is_some() {
-        crate::camera::View::parse(&view_of(0)).map_err(|e| bad("frames.path", e.to_string()))?;
-    }
-    let map_variants: Vec<Option<MapMode>> = match &sequence {
-        Some((_, maps)) => maps.iter().map(|&m| Some(m)).collect(),
-        None => vec![None],
-    };
-    let mut runs = Vec::new();
-    let mut skipped = Vec::new();
-    let mut configs: BTreeMap<String, HardwareConfig> = BTreeMap::new();
-    for name in &experiment.datasets {
-        let dims = volumes[name].dims;
-        for tf in &experiment.tf {
-            for given_mode in &modes {
-                for &map in &map_variants {
-                    // A sequence without leaping renders without a map whatever the mode says.
-                    let mode = &match map {
-                        Some(MapMode::None) => Mode {
-                            subcube: 0,
-                            hierarchy: false,
-                            ..*given_mode
-                        },
-                        _ => *given_mode,
-                    };
-                    if map.is_some_and(|m| m != MapMode::None) && mode.subcube == 0 {
-                        skipped.push(Skipped {
-                            dataset: name.clone(),
-                            mode: mode.name(),
-                            reason: format!(
-                                "map strategy {} needs a leaping mode (leapN)",
-                                map.map(|m| m.name()).unwrap_or_default()
-                            ),
-                        });
-                        continue;
-                    }
-                    for &model in &models {
-                        for combo in &combos {
-                            let mut overrides: Vec<String> =
-                                combo.iter().map(|(p, v)| format!("{p}={v}")).collect();
-                            overrides.push(format!("compositing.ert={}", mode.ert));
-                            overrides.push(format!("occupancy.subcube={}", mode.subcube));
-                            overrides.push(format!("occupancy.hierarchy={}", mode.hierarchy));
-                            overrides.push(format!("occupancy.kind=\"{tf}\""));
-                            let id = overrides.join(" ");
-                            let mut config = match configs.get(&id) {
-                                Some(c) => c.clone(),
-                                None => {
-                                    let c = HardwareConfig::from_toml_str(
-                                        &base_text, &base_name, &overrides,
-                                    )
-                                    .map_err(|e| {
-                                        bad(
-                                            "axes",
-                                            format!(
-                                                "the combination {}: {e}",
-                                                combo
-                                                    .iter()
-                                                    .map(|(p, v)| format!("{p}={v}"))
-                                                    .collect::<Vec<_>>()
-                                                    .join(", ")
-                                            ),
-                                        )
-                                    })?;
-                                    configs.insert(id, c.clone());
-                                    c
-                                }
-                            };
-                            if mode.distance_bits > 0 {
-                                // Set here, not by `--set`, so a base file without the fields works.
-                                config.occupancy.structure = config::LeapStructure::Distance;
-                                config.occupancy.distance_bits = mode.distance_bits;
-                            } else if let Some(regions) = mode.leap_values {
-                                config.occupancy.structure = config::LeapStructure::LeapValues;
-                                config.leap_values.regions = regions;
-                            } else {
-                                config.occupancy.structure = config::LeapStructure::Map;
-                            }
-                            // Bricks: set here (like the distance volume), so a base file without
-                            // the section works and a run without bricks keeps its key.
-                            config.bricks.size = mode.bricks;
-                            if mode.bricks > 0 {
-                                config.bricks.setup = if mode.brick_table {
-                                    config::BrickSetup::Table
-                                } else {
-                                    config::BrickSetup::Traversal
-                                };
-                                if mode.bricks > *dims.iter().max().unwrap_or(&0) {
-                                    skipped.push(Skipped {
-                                        dataset: name.clone(),
-                                        mode: mode.name(),
-                                        reason: format!("brick larger than the volume {dims:?}"),
-                                    });
-                                    continue;
-                                }
-                            }
-                            // Iso mode: set here too; the iso value comes from the base file or
-                            // an `iso.value` axis.
-                            if let Some(n) = mode.iso {
-                                config.iso.enabled = true;
-                                config.iso.refinement_steps = n;
-                            }
-                            let mut fits = true;
-                            if mode.subcube > 0 {
-                                if mode.subcube > *dims.iter().max().unwrap_or(&0) {
-                                    skipped.push(Skipped {
-                                        dataset: name.clone(),
-                                        mode: mode.name(),
-                                        reason: format!("sub-cube larger than the volume {dims:?}"),
-                                    });
-                                    continue;
-                                }
-                                let bits = map_bits(dims, mode.subcube, mode.hierarchy);
-                                if bits > config.occupancy.sram_bits {
-                                    if !experiment.raise_sram {
-                                        skipped.push(Skipped {
-                                            dataset: name.clone(),
-                                            mode: mode.name(),
-                                            reason: format!(
-                                                "map needs {bits} bits > occupancy.sram_bits {}",
-                                                config.occupancy.sram_bits
-                                            ),
-                                        });
-                                        continue;
-                                    }
-                                    fits = false;
-                                    config.occupancy.sram_bits = bits.next_power_of_two();
-                                }
-                            }
-                            let axes_json: BTreeMap<String, serde_json::Value> = combo
-                                .iter()
-                                .map(|(p, v)| (p.clone(), toml_to_json(v)))
-                                .collect();
-                            let excluded = experiment.exclude.iter().any(|rule| {
-                                rule.iter().all(|(k, v)| match k.as_str() {
-                                    "dataset" => v.as_str() == Some(name),
-                                    "tf" => v.as_str() == Some(tf),
-                                    "mode" => v
-                                        .as_str()
-                                        .and_then(|m| Mode::parse(m).ok())
-                                        .is_some_and(|m| m == *mode),
-                                    "model" => v.as_str() == Some(model.name()),
-                                    path => axes_json.get(path) == Some(&toml_to_json(v)),
-                                })
-                            });
-                            if excluded {
-                                continue;
-                            }
-                            for &frame in &frame_list {
-                                let view = view_of(frame);
-                                let run = RunDescription {
-                                    view,
-                                    projection,
-                                    size,
-                                    ..RunDescription::new(name, tf, model, config.clone())
-                                };
-                                let spec = RunSpec {
-                                    key: run_key(&run),
-                                    index: runs.len(),
-                                    mode: *mode,
-                                    frame,
-                                    axes: axes_json.clone(),
-                                    fits_default_sram: fits,
-                                    run,
-                                    sequence: None,
-                                };
-                                match (&sequence, map) {
-                                    (Some((seq, _)), Some(map)) => {
-                                        for time_step in 0..seq.steps {
-                                            let step = StepSpec {
-                                                source: name.clone(),
-                                                time_step,
-                                                map,
-                                                dt: seq.dt,
-                                                brick: seq.brick,
-                                            };
-                                            runs.push(RunSpec {
-                                                key: step_key(&spec.run, &step),
-                                                index: runs.len(),
-                                                sequence: Some(step),
-                                                ..spec.clone()
-                                            });
-                                        }
-                                    }
-                                    _ => runs.push(spec),
-                                }
-                            }
-                        }
-                    }
-                }
-            }
-        }
+        let view = format!(
+            "path:{}:0/{}",
+            frames.path.as_deref().unwrap_or(""),
+            frames.orbit
+        );
+        crate::camera::View::parse(&view).map_err(|e| bad("frames.path", e.to_string()))?;
     }
     for rule in &experiment.exclude {
         if rule.is_empty() {
@@ -958,37 +803,349 @@ pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expan
             }
         }
     }
-    // The same run listed twice (a repeated dataset, frame or axis value; 12.5 and 12.50 are
-    // one value) has one key: keep its first occurrence.
-    let listed = runs.len();
-    let mut seen = std::collections::HashSet::new();
-    runs.retain(|r| seen.insert(r.key.clone()));
-    for (i, run) in runs.iter_mut().enumerate() {
-        run.index = i;
-    }
-    let duplicates = listed - runs.len();
-    if runs.is_empty() {
-        let why = if skipped.is_empty() {
-            "every run is excluded by `exclude`".to_string()
-        } else {
-            format!(
-                "no run is left: {} points were left out for sub-cube size or SRAM fit (first: {} {}: {}), the rest excluded",
-                skipped.len(),
-                skipped[0].dataset,
-                skipped[0].mode,
-                skipped[0].reason
-            )
-        };
-        return Err(bad("exclude", why));
-    }
-    Ok(Expansion {
-        experiment,
+    Ok(Plan {
         source: source.to_string(),
-        runs,
-        skipped,
-        duplicates,
         volumes,
+        base_text,
+        base_name,
+        modes,
+        models,
+        frame_list,
+        size,
+        projection,
+        sequence,
+        axes,
+        groups,
+        count,
+        experiment,
     })
+}
+
+/// A validated experiment with its datasets loaded, before expansion (`plan`).
+pub struct Plan {
+    pub experiment: ExperimentFile,
+    pub source: String,
+    pub volumes: Volumes,
+    /// Runs the product lists, duplicates and left-out points included (at most `MAX_RUNS`).
+    pub count: u64,
+    base_text: String,
+    base_name: String,
+    modes: Vec<Mode>,
+    models: Vec<Model>,
+    frame_list: Vec<u32>,
+    size: (u32, u32),
+    projection: Projection,
+    sequence: Option<(SequenceAxis, Vec<MapMode>)>,
+    axes: Vec<(String, Vec<toml::Value>)>,
+    /// Axis indices advancing together (a zip group or one axis), in product order.
+    groups: Vec<Vec<usize>>,
+}
+
+/// Resolved configurations kept for reuse during an expansion; the cache is emptied when full,
+/// so a long product costs parsing time, not memory.
+const CONFIG_CACHE: usize = 1024;
+
+/// What an expansion left out or dropped.
+#[derive(Default)]
+pub struct Omitted {
+    /// Points left out (sub-cube or brick larger than the volume, SRAM fit, a map strategy
+    /// without leaping), each reason once.
+    pub skipped: Vec<Skipped>,
+    /// Runs listed more than once, dropped (each runs once).
+    pub duplicates: usize,
+}
+
+impl Plan {
+    /// Combinations of axis values: the product of the groups' lengths.
+    fn combinations(&self) -> usize {
+        self.groups
+            .iter()
+            .map(|g| self.axes[g[0]].1.len())
+            .product()
+    }
+
+    /// Combination `i` of the product, the last group advancing fastest (the order the
+    /// expansion always had).
+    fn combination(&self, mut i: usize) -> Vec<(String, toml::Value)> {
+        let mut picks = vec![0; self.groups.len()];
+        for (g, group) in self.groups.iter().enumerate().rev() {
+            let len = self.axes[group[0]].1.len();
+            picks[g] = i % len;
+            i /= len;
+        }
+        let mut combo = Vec::new();
+        for (group, &j) in self.groups.iter().zip(&picks) {
+            for &m in group {
+                combo.push((self.axes[m].0.clone(), self.axes[m].1[j].clone()));
+            }
+        }
+        combo
+    }
+
+    /// Calls `visit` with every run in expansion order, without holding them: a run listed
+    /// more than once (a repeated dataset, frame or axis value; 12.5 and 12.50 are one value)
+    /// is passed only the first time, with `index` its position among the runs passed. Only
+    /// each run's 8-byte key is kept, to find repeats. Fails, naming why, when no run is left.
+    pub fn for_each_run(&self, mut visit: impl FnMut(RunSpec) -> Result<()>) -> Result<Omitted> {
+        let mut seen: std::collections::HashSet<u64> = std::collections::HashSet::new();
+        let (mut passed, mut duplicates) = (0usize, 0usize);
+        let mut emit = |mut run: RunSpec| -> Result<()> {
+            let id = u64::from_str_radix(&run.key, 16)
+                .map_err(|_| Error::Invalid(format!("run key {} is not hexadecimal", run.key)))?;
+            if !seen.insert(id) {
+                duplicates += 1;
+                return Ok(());
+            }
+            run.index = passed;
+            passed += 1;
+            visit(run)
+        };
+        let mut skipped: Vec<Skipped> = Vec::new();
+        let mut skip = |s: Skipped| {
+            let known = skipped
+                .iter()
+                .any(|k| k.dataset == s.dataset && k.mode == s.mode && k.reason == s.reason);
+            if !known {
+                skipped.push(s);
+            }
+        };
+        self.runs(&mut emit, &mut skip)?;
+        let omitted = Omitted {
+            skipped,
+            duplicates,
+        };
+        if passed == 0 {
+            let why = if omitted.skipped.is_empty() {
+                "every run is excluded by `exclude`".to_string()
+            } else {
+                let first = &omitted.skipped[0];
+                format!(
+                    "no run is left: {} points were left out for sub-cube size or SRAM fit \
+                     (first: {} {}: {}), the rest excluded",
+                    omitted.skipped.len(),
+                    first.dataset,
+                    first.mode,
+                    first.reason
+                )
+            };
+            return Err(Error::config(&self.source, "exclude", why));
+        }
+        Ok(omitted)
+    }
+
+    /// The product itself: every listed run to `emit`, every left-out point to `skip`.
+    fn runs(
+        &self,
+        emit: &mut dyn FnMut(RunSpec) -> Result<()>,
+        skip: &mut dyn FnMut(Skipped),
+    ) -> Result<()> {
+        let experiment = &self.experiment;
+        let frames = &experiment.frames;
+        let bad = |field: &str, message: String| Error::config(&self.source, field, message);
+        let view_of = |frame: u32| match &frames.path {
+            Some(file) => format!("path:{file}:{frame}/{}", frames.orbit),
+            None => format!("orbit:{frame}/{}", frames.orbit),
+        };
+        let map_variants: Vec<Option<MapMode>> = match &self.sequence {
+            Some((_, maps)) => maps.iter().map(|&m| Some(m)).collect(),
+            None => vec![None],
+        };
+        let mut configs: std::collections::HashMap<String, HardwareConfig> =
+            std::collections::HashMap::new();
+        for name in &experiment.datasets {
+            let dims = self.volumes[name].dims;
+            for tf in &experiment.tf {
+                for given_mode in &self.modes {
+                    for &map in &map_variants {
+                        // A sequence without leaping renders without a map whatever the mode says.
+                        let mode = &match map {
+                            Some(MapMode::None) => Mode {
+                                subcube: 0,
+                                hierarchy: false,
+                                ..*given_mode
+                            },
+                            _ => *given_mode,
+                        };
+                        if map.is_some_and(|m| m != MapMode::None) && mode.subcube == 0 {
+                            skip(Skipped {
+                                dataset: name.clone(),
+                                mode: mode.name(),
+                                reason: format!(
+                                    "map strategy {} needs a leaping mode (leapN)",
+                                    map.map(|m| m.name()).unwrap_or_default()
+                                ),
+                            });
+                            continue;
+                        }
+                        for &model in &self.models {
+                            for combo in (0..self.combinations()).map(|i| self.combination(i)) {
+                                let mut overrides: Vec<String> =
+                                    combo.iter().map(|(p, v)| format!("{p}={v}")).collect();
+                                overrides.push(format!("compositing.ert={}", mode.ert));
+                                overrides.push(format!("occupancy.subcube={}", mode.subcube));
+                                overrides.push(format!("occupancy.hierarchy={}", mode.hierarchy));
+                                overrides.push(format!("occupancy.kind=\"{tf}\""));
+                                let id = overrides.join(" ");
+                                let mut config = match configs.get(&id) {
+                                    Some(c) => c.clone(),
+                                    None => {
+                                        // Bounded: a long axis product must not keep every
+                                        // configuration (the dry run streams).
+                                        if configs.len() >= CONFIG_CACHE {
+                                            configs.clear();
+                                        }
+                                        let c = HardwareConfig::from_toml_str(
+                                            &self.base_text,
+                                            &self.base_name,
+                                            &overrides,
+                                        )
+                                        .map_err(|e| {
+                                            bad(
+                                                "axes",
+                                                format!(
+                                                    "the combination {}: {e}",
+                                                    combo
+                                                        .iter()
+                                                        .map(|(p, v)| format!("{p}={v}"))
+                                                        .collect::<Vec<_>>()
+                                                        .join(", ")
+                                                ),
+                                            )
+                                        })?;
+                                        configs.insert(id, c.clone());
+                                        c
+                                    }
+                                };
+                                if mode.distance_bits > 0 {
+                                    // Set here, not by `--set`, so a base file without the fields works.
+                                    config.occupancy.structure = config::LeapStructure::Distance;
+                                    config.occupancy.distance_bits = mode.distance_bits;
+                                } else if let Some(regions) = mode.leap_values {
+                                    config.occupancy.structure = config::LeapStructure::LeapValues;
+                                    config.leap_values.regions = regions;
+                                } else {
+                                    config.occupancy.structure = config::LeapStructure::Map;
+                                }
+                                // Bricks: set here (like the distance volume), so a base file without
+                                // the section works and a run without bricks keeps its key.
+                                config.bricks.size = mode.bricks;
+                                if mode.bricks > 0 {
+                                    config.bricks.setup = if mode.brick_table {
+                                        config::BrickSetup::Table
+                                    } else {
+                                        config::BrickSetup::Traversal
+                                    };
+                                    if mode.bricks > *dims.iter().max().unwrap_or(&0) {
+                                        skip(Skipped {
+                                            dataset: name.clone(),
+                                            mode: mode.name(),
+                                            reason: format!(
+                                                "brick larger than the volume {dims:?}"
+                                            ),
+                                        });
+                                        continue;
+                                    }
+                                }
+                                // Iso mode: set here too; the iso value comes from the base file or
+                                // an `iso.value` axis.
+                                if let Some(n) = mode.iso {
+                                    config.iso.enabled = true;
+                                    config.iso.refinement_steps = n;
+                                }
+                                let mut fits = true;
+                                if mode.subcube > 0 {
+                                    if mode.subcube > *dims.iter().max().unwrap_or(&0) {
+                                        skip(Skipped {
+                                            dataset: name.clone(),
+                                            mode: mode.name(),
+                                            reason: format!(
+                                                "sub-cube larger than the volume {dims:?}"
+                                            ),
+                                        });
+                                        continue;
+                                    }
+                                    let bits = map_bits(dims, mode.subcube, mode.hierarchy);
+                                    if bits > config.occupancy.sram_bits {
+                                        if !experiment.raise_sram {
+                                            skip(Skipped {
+                                                dataset: name.clone(),
+                                                mode: mode.name(),
+                                                reason: format!(
+                                                    "map needs {bits} bits > occupancy.sram_bits {}",
+                                                    config.occupancy.sram_bits
+                                                ),
+                                            });
+                                            continue;
+                                        }
+                                        fits = false;
+                                        config.occupancy.sram_bits = bits.next_power_of_two();
+                                    }
+                                }
+                                let axes_json: BTreeMap<String, serde_json::Value> = combo
+                                    .iter()
+                                    .map(|(p, v)| (p.clone(), toml_to_json(v)))
+                                    .collect();
+                                let excluded = experiment.exclude.iter().any(|rule| {
+                                    rule.iter().all(|(k, v)| match k.as_str() {
+                                        "dataset" => v.as_str() == Some(name),
+                                        "tf" => v.as_str() == Some(tf),
+                                        "mode" => v
+                                            .as_str()
+                                            .and_then(|m| Mode::parse(m).ok())
+                                            .is_some_and(|m| m == *mode),
+                                        "model" => v.as_str() == Some(model.name()),
+                                        path => axes_json.get(path) == Some(&toml_to_json(v)),
+                                    })
+                                });
+                                if excluded {
+                                    continue;
+                                }
+                                for &frame in &self.frame_list {
+                                    let view = view_of(frame);
+                                    let run = RunDescription {
+                                        view,
+                                        projection: self.projection,
+                                        size: self.size,
+                                        ..RunDescription::new(name, tf, model, config.clone())
+                                    };
+                                    let spec = RunSpec {
+                                        key: run_key(&run),
+                                        index: 0,
+                                        mode: *mode,
+                                        frame,
+                                        axes: axes_json.clone(),
+                                        fits_default_sram: fits,
+                                        run,
+                                        sequence: None,
+                                    };
+                                    match (&self.sequence, map) {
+                                        (Some((seq, _)), Some(map)) => {
+                                            for time_step in 0..seq.steps {
+                                                let step = StepSpec {
+                                                    source: name.clone(),
+                                                    time_step,
+                                                    map,
+                                                    dt: seq.dt,
+                                                    brick: seq.brick,
+                                                };
+                                                emit(RunSpec {
+                                                    key: step_key(&spec.run, &step),
+                                                    sequence: Some(step),
+                                                    ..spec.clone()
+                                                })?;
+                                            }
+                                        }
+                                        _ => emit(spec)?,
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The run's identity: a hash of everything that decides its result (not the experiment's

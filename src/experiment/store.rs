@@ -29,16 +29,62 @@ pub fn read_lines(path: &Path) -> Result<Vec<(Value, String)>> {
     Ok(scan(path)?.0)
 }
 
+/// The keys of the complete lines of a results file (missing file = none), read line by line
+/// so that only the keys are held (the dry run). A torn last line is left out; a malformed line
+/// elsewhere is an error, as in `read_lines`.
+pub fn result_keys(path: &Path) -> Result<HashSet<String>> {
+    use std::io::BufRead;
+    match std::fs::symlink_metadata(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(HashSet::new()),
+        Err(e) => return Err(Error::io(path, e)),
+        Ok(_) => {}
+    }
+    let file = crate::input::open_regular(path)?;
+    let mut reader = std::io::BufReader::new(file);
+    let mut keys = HashSet::new();
+    let mut line = Vec::new();
+    let mut number = 0;
+    let mut malformed = None;
+    loop {
+        line.clear();
+        let n = reader
+            .read_until(b'\n', &mut line)
+            .map_err(|e| Error::io(path, e))?;
+        if n == 0 {
+            break;
+        }
+        number += 1;
+        // A malformed line is an error only when another line follows it (else it is torn).
+        if let Some(bad) = malformed.take() {
+            return Err(Error::format(
+                path,
+                format!("line {bad} is not a result line (corrupt file?)"),
+            ));
+        }
+        if line.last() != Some(&b'\n') {
+            break;
+        }
+        let key = serde_json::from_slice::<Value>(&line[..n - 1])
+            .ok()
+            .and_then(|v| v.get("key").and_then(Value::as_str).map(str::to_string));
+        match key {
+            Some(k) => {
+                keys.insert(k);
+            }
+            None => malformed = Some(number),
+        }
+    }
+    Ok(keys)
+}
+
 /// A parsed result line and its text.
 type Line = (Value, String);
 
 /// Lines, the byte length of the complete part of the file, and whether a torn last line
 /// follows it.
 fn scan(path: &Path) -> Result<(Vec<Line>, u64, bool)> {
-    let bytes = match std::fs::read(path) {
-        Ok(b) => b,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok((Vec::new(), 0, false)),
-        Err(e) => return Err(Error::io(path, e)),
+    let Some(bytes) = crate::input::read_existing(path)? else {
+        return Ok((Vec::new(), 0, false));
     };
     let mut lines = Vec::new();
     let mut offset = 0usize;
@@ -81,10 +127,8 @@ fn scan(path: &Path) -> Result<(Vec<Line>, u64, bool)> {
 /// The well-formed lines of a timing file (missing file = none): torn or malformed lines (a
 /// full disk, a kill between the result and its time) are skipped, not errors.
 pub fn read_timing(path: &Path) -> Result<Vec<Line>> {
-    let bytes = match std::fs::read(path) {
-        Ok(b) => b,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
-        Err(e) => return Err(Error::io(path, e)),
+    let Some(bytes) = crate::input::read_existing(path)? else {
+        return Ok(Vec::new());
     };
     let text = String::from_utf8_lossy(&bytes);
     let mut lines = Vec::new();
@@ -106,7 +150,7 @@ pub fn read_timing(path: &Path) -> Result<Vec<Line>> {
 /// well-formed time of each, `"wall_seconds": null` where it was lost. Rewritten (atomically)
 /// only when that changes the file; returns whether it did.
 fn repair_timing(path: &Path, result_keys: &[String]) -> Result<bool> {
-    let existing = std::fs::read(path).unwrap_or_default();
+    let existing = crate::input::read_existing(path)?.unwrap_or_default();
     let mut times: std::collections::HashMap<String, String> = std::collections::HashMap::new();
     for (v, text) in read_timing(path)? {
         if let Some(key) = v.get("key").and_then(Value::as_str) {
@@ -235,9 +279,10 @@ impl ResultStore {
     /// mix into this one's tables. A folder without a resolved experiment is taken as new.
     pub fn check_same_experiment(dir: &Path, name: &str) -> Result<()> {
         let path = dir.join(RESOLVED);
-        let Ok(text) = std::fs::read_to_string(&path) else {
+        let Some(bytes) = crate::input::read_existing(&path)? else {
             return Ok(());
         };
+        let text = String::from_utf8_lossy(&bytes);
         let existing = serde_json::from_str::<Value>(&text)
             .ok()
             .and_then(|v| v["experiment"]["name"].as_str().map(str::to_string));

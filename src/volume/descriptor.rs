@@ -58,6 +58,8 @@ pub fn load_descriptor(path: &Path) -> Result<Volume> {
         return Err(config("file", "must not be empty".into()));
     }
     let data_path = path.parent().unwrap_or(Path::new("")).join(&desc.file);
+    // Errors of the data file name the descriptor that pointed to it too.
+    let in_file = |e: Error| config("file", e.to_string());
     let extension = data_path
         .extension()
         .and_then(|e| e.to_str())
@@ -78,7 +80,7 @@ pub fn load_descriptor(path: &Path) -> Result<Volume> {
                     ));
                 }
             }
-            let mut volume = nrrd::load_nrrd(&data_path)?;
+            let mut volume = nrrd::load_nrrd(&data_path).map_err(in_file)?;
             volume.name = name;
             if let Some(spacing) = desc.spacing {
                 volume.spacing = spacing;
@@ -126,7 +128,7 @@ pub fn load_descriptor(path: &Path) -> Result<Volume> {
                 }
             };
             let spacing = desc.spacing.unwrap_or([1.0; 3]);
-            load_raw_with_endian(&data_path, &name, dims, bits, spacing, endian)
+            load_raw_with_endian(&data_path, &name, dims, bits, spacing, endian).map_err(in_file)
         }
         _ => Err(config(
             "file",
