@@ -196,6 +196,9 @@ pub struct Candidate {
     pub predicted_fps: f64,
     /// Predicted frame rate over ERT alone's.
     pub speedup_over_ert: f64,
+    /// May be recommended (validation restricted to some structures); always true in advice.
+    #[serde(skip)]
+    pub allowed: bool,
 }
 
 /// The advisor's answer.
@@ -216,6 +219,22 @@ pub struct Advice {
     pub recommended: String,
     /// Wall time of the advice (loading the volume excluded), seconds.
     pub seconds: f64,
+    /// CPU time of the process over the advice, all threads, seconds (Linux; on a shared
+    /// machine the wall time includes waiting for a core).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cpu_seconds: Option<f64>,
+}
+
+/// User + system CPU time of this process so far, from /proc/self/stat (Linux), seconds.
+fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name (which may hold spaces) end with ')'.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    // utime and stime are fields 14 and 15 of the line, 12 and 13 after the name.
+    let ticks = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
+    // The clock tick is 100 Hz on every Linux configuration vizsim runs on (USER_HZ).
+    Some(ticks / 100.0)
 }
 
 impl Advice {
@@ -310,6 +329,7 @@ fn label(mode: &Mode) -> String {
 /// `volume`, which must be the run's dataset.
 pub fn advise(base: &RunDescription, volume: &Volume, options: &AdviseOptions) -> Result<Advice> {
     let start = Instant::now();
+    let cpu_start = process_cpu_seconds();
     if options.views.is_empty() {
         return Err(Error::Invalid("advise: no views to predict".into()));
     }
@@ -392,6 +412,7 @@ pub fn advise(base: &RunDescription, volume: &Volume, options: &AdviseOptions) -
             predicted_cycles: cycles,
             predicted_fps: base.hardware.clock.frequency_mhz * 1e6 / cycles.max(1.0),
             speedup_over_ert: 0.0,
+            allowed: true,
         });
     }
     let ert_fps = ranking
@@ -422,6 +443,9 @@ pub fn advise(base: &RunDescription, volume: &Volume, options: &AdviseOptions) -
         ranking,
         recommended,
         seconds: start.elapsed().as_secs_f64(),
+        cpu_seconds: process_cpu_seconds()
+            .zip(cpu_start)
+            .map(|(end, start)| end - start),
     })
 }
 
@@ -434,7 +458,8 @@ pub struct ValidationRow {
     pub transfer_function: String,
     /// Swept fields of the pair other than the mode's (`skip.policy=leap-only`), or empty.
     pub axes: String,
-    /// Frames of the truth (mean over them) and the views the advisor used.
+    /// Frames of the truth (mean over them; 0: a table's means, frames not known) and the views
+    /// the advisor used.
     pub frames: usize,
     pub advisor_views: usize,
     pub size: (u32, u32),
@@ -450,6 +475,23 @@ pub struct ValidationRow {
     pub predicted_fps: f64,
     pub ert_fps: Option<f64>,
     pub advice_seconds: f64,
+    pub advice_cpu_seconds: Option<f64>,
+    /// Predicted against measured frame rate over every configuration of the pair the advisor
+    /// predicted: mean and largest |predicted / measured − 1|, percent.
+    pub fps_error_mean_percent: f64,
+    pub fps_error_max_percent: f64,
+}
+
+/// Mean and largest |predicted / measured − 1| in percent over `(mode, measured fps)`.
+fn fps_errors<'a>(advice: &Advice, truth: impl Iterator<Item = (&'a str, f64)>) -> (f64, f64) {
+    let errors: Vec<f64> = truth
+        .filter_map(|(m, fps)| {
+            let c = advice.ranking.iter().find(|c| c.mode == m)?;
+            Some(100.0 * (c.predicted_fps / fps - 1.0).abs())
+        })
+        .collect();
+    let mean = errors.iter().sum::<f64>() / errors.len().max(1) as f64;
+    (mean, errors.iter().copied().fold(0.0, f64::max))
 }
 
 /// How `validate` runs the advisor.
@@ -459,6 +501,9 @@ pub struct ValidateOptions {
     pub max_rays: u64,
     /// Largest number of the pair's frames the advisor uses (evenly spaced among them).
     pub max_views: usize,
+    /// Structures the advisor may pick from; `None`: every structure the folder ran. The true
+    /// best is always taken over every configuration of the folder that fits.
+    pub structures: Option<Vec<Structure>>,
 }
 
 /// Mean cycle-model frame rate per mode of one pair, and what is needed to re-run the advisor.
@@ -469,6 +514,8 @@ struct Pair {
     axes: Vec<(String, serde_json::Value)>,
     size: (u32, u32),
     views: std::collections::BTreeSet<(u32, String)>,
+    /// Result lines of the pair.
+    lines: usize,
     /// mode -> (frame -> fps, fits the default SRAM)
     modes: std::collections::BTreeMap<String, (std::collections::BTreeMap<u32, f64>, bool)>,
 }
@@ -484,16 +531,51 @@ const MODE_FIELDS: &[&str] = &[
     "leap_values.regions",
 ];
 
+/// What `validate` found: a row per pair whose results are all there, and the pairs left out.
+#[derive(Clone, Debug, Serialize)]
+pub struct Validation {
+    pub rows: Vec<ValidationRow>,
+    /// Pairs whose runs are not all in the folder yet (`dataset tf: N of M runs`).
+    pub incomplete: Vec<String>,
+}
+
+/// The pair's identity: dataset, tf and the swept fields other than the mode's.
+fn pair_id(dataset: &str, tf: &str, axes: &[(String, serde_json::Value)]) -> String {
+    format!(
+        "{dataset}\u{0}{tf}\u{0}{}",
+        serde_json::to_string(axes).unwrap_or_default()
+    )
+}
+
+fn axes_of(v: &serde_json::Value) -> Vec<(String, serde_json::Value)> {
+    v.as_object()
+        .map(|o| {
+            o.iter()
+                .filter(|(k, _)| !MODE_FIELDS.contains(&k.as_str()))
+                .map(|(k, v)| (k.clone(), v.clone()))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// A mode the advisor ranks: ERT with a map, a distance volume or lossless leap values.
+fn ranked_mode(mode: &str) -> bool {
+    Mode::parse(mode).is_ok_and(|m| {
+        m.ert && m.bricks == 0 && m.iso.is_none() && m.leap_values != Some(LeapRegions::Homogeneous)
+    })
+}
+
 /// Runs the advisor for every (dataset, tf, swept fields) of the sweep results in `dir` (cycle
 /// model lines) and compares its pick with the fastest configuration there that fits the SRAM.
 /// Only modes the advisor ranks count (lossless leaping with ERT); `none`, bricks, iso and
-/// homogeneous leap values are ignored.
+/// homogeneous leap values are ignored. A pair whose runs (by the folder's
+/// `experiment.resolved.json`) are not all there yet is left out and listed.
 pub fn validate(
     dir: &std::path::Path,
     data_dir: Option<&std::path::Path>,
     options: &ValidateOptions,
     mut progress: impl FnMut(&ValidationRow),
-) -> Result<Vec<ValidationRow>> {
+) -> Result<Validation> {
     use std::collections::BTreeMap;
     if !dir.is_dir() {
         return Err(Error::Invalid(format!(
@@ -509,26 +591,27 @@ pub fn validate(
             crate::experiment::store::RESULTS
         )));
     }
-    // The experiment's base configuration file, when it named one.
-    let resolved = dir.join("experiment.resolved.json");
-    let base_config = match std::fs::read_to_string(&resolved) {
-        Ok(text) => serde_json::from_str::<serde_json::Value>(&text)
+    let resolved: Option<serde_json::Value> =
+        std::fs::read_to_string(dir.join("experiment.resolved.json"))
             .ok()
-            .and_then(|v| {
-                v["experiment"]["config"]
-                    .as_str()
-                    .map(std::path::PathBuf::from)
-            }),
-        Err(_) => None,
-    };
-    let known = |mode: &str| {
-        Mode::parse(mode).ok().filter(|m| {
-            m.ert
-                && m.bricks == 0
-                && m.iso.is_none()
-                && m.leap_values != Some(LeapRegions::Homogeneous)
-        })
-    };
+            .and_then(|text| serde_json::from_str(&text).ok());
+    // The experiment's base configuration file, when it named one.
+    let base_config = resolved.as_ref().and_then(|v| {
+        v["experiment"]["config"]
+            .as_str()
+            .map(std::path::PathBuf::from)
+    });
+    // Runs the experiment expands to, per pair.
+    let mut expected: BTreeMap<String, usize> = BTreeMap::new();
+    if let Some(runs) = resolved.as_ref().and_then(|v| v["runs"].as_array()) {
+        for run in runs {
+            let text = |k: &str| run[k].as_str().unwrap_or_default();
+            if text("model") == "cycle" && ranked_mode(text("mode")) {
+                let id = pair_id(text("dataset"), text("tf"), &axes_of(&run["axes"]));
+                *expected.entry(id).or_default() += 1;
+            }
+        }
+    }
     let mut pairs: BTreeMap<String, Pair> = BTreeMap::new();
     for (line, _) in crate::experiment::store::read_lines(&results)? {
         if line["model"].as_str() != Some("cycle") || line.get("time_step").is_some() {
@@ -536,7 +619,7 @@ pub fn validate(
         }
         let text = |k: &str| line[k].as_str().unwrap_or_default().to_string();
         let mode = text("mode");
-        if known(&mode).is_none() {
+        if !ranked_mode(&mode) {
             continue;
         }
         let (Some(fps), Some(w), Some(h)) = (
@@ -546,21 +629,8 @@ pub fn validate(
         ) else {
             continue;
         };
-        let axes: Vec<(String, serde_json::Value)> = line["axes"]
-            .as_object()
-            .map(|o| {
-                o.iter()
-                    .filter(|(k, _)| !MODE_FIELDS.contains(&k.as_str()))
-                    .map(|(k, v)| (k.clone(), v.clone()))
-                    .collect()
-            })
-            .unwrap_or_default();
-        let id = format!(
-            "{}\u{0}{}\u{0}{}\u{0}{w}x{h}",
-            text("dataset"),
-            text("tf"),
-            serde_json::to_string(&axes).unwrap_or_default()
-        );
+        let axes = axes_of(&line["axes"]);
+        let id = pair_id(&text("dataset"), &text("tf"), &axes);
         let pair = pairs.entry(id).or_insert_with(|| Pair {
             dataset: text("dataset"),
             tf: text("tf"),
@@ -568,8 +638,10 @@ pub fn validate(
             axes,
             size: (w as u32, h as u32),
             views: Default::default(),
+            lines: 0,
             modes: BTreeMap::new(),
         });
+        pair.lines += 1;
         let frame = line["frame"].as_u64().unwrap_or(0) as u32;
         pair.views.insert((frame, text("view")));
         let fits = line["fits_default_sram"].as_bool().unwrap_or(true);
@@ -579,8 +651,18 @@ pub fn validate(
             .or_insert_with(|| (BTreeMap::new(), fits));
         entry.0.insert(frame, fps);
     }
-    // Means over the frames every mode of a pair has (a sweep still running, or a folder that
-    // grew by frames, holds more frames of some modes than of others).
+    // A pair whose results are not all there (a sweep still running) is left out: its best
+    // configuration may be among the missing runs.
+    let mut incomplete = Vec::new();
+    pairs.retain(|id, p| match expected.get(id) {
+        Some(&n) if p.lines < n => {
+            incomplete.push(format!("{} {}: {} of {n} runs", p.dataset, p.tf, p.lines));
+            false
+        }
+        _ => true,
+    });
+    // Means over the frames every mode of a pair has (a folder that grew by frames holds more
+    // frames of some modes than of others).
     for pair in pairs.values_mut() {
         let common: std::collections::BTreeSet<u32> = pair
             .views
@@ -598,7 +680,7 @@ pub fn validate(
         }
     }
     pairs.retain(|_, p| !p.views.is_empty());
-    if pairs.is_empty() {
+    if pairs.is_empty() && incomplete.is_empty() {
         return Err(Error::Invalid(format!(
             "advise --validate {}: no cycle-model results of modes the advisor ranks (ert, \
              ert+leapN[+hier], ert+distanceN, ert+leapvalues)",
@@ -631,7 +713,9 @@ pub fn validate(
         if pair.modes.keys().any(|m| m.contains("leapvalues")) {
             structures.push(Structure::LeapValues);
         }
-        let advice = advise(
+        // The advice is restricted to the structures asked for; the truth ranks them all.
+        let allowed = options.structures.clone().unwrap_or(structures.clone());
+        let mut advice = advise(
             &base,
             &volume,
             &AdviseOptions {
@@ -640,6 +724,14 @@ pub fn validate(
                 structures,
             },
         )?;
+        for c in &mut advice.ranking {
+            let structure = match c.structure {
+                CandidateStructure::Distance => Structure::Distance,
+                CandidateStructure::LeapValues => Structure::LeapValues,
+                CandidateStructure::Map | CandidateStructure::None => Structure::Map,
+            };
+            c.allowed = allowed.contains(&structure);
+        }
         let mean = |m: &str| {
             pair.modes
                 .get(m)
@@ -649,7 +741,7 @@ pub fn validate(
         let advised = advice
             .ranking
             .iter()
-            .find(|c| c.fits && pair.modes.contains_key(&c.mode))
+            .find(|c| c.fits && c.allowed && pair.modes.contains_key(&c.mode))
             .ok_or_else(|| {
                 Error::Invalid(format!(
                     "advise --validate {}: {} with {}: no configuration that fits the SRAM",
@@ -668,6 +760,12 @@ pub fn validate(
             .max_by(|a, b| a.1.total_cmp(&b.1))
             .unwrap_or_else(|| (advised.mode.clone(), mean(&advised.mode).unwrap_or(0.0)));
         let advised_fps = mean(&advised.mode).unwrap_or(0.0);
+        let (error_mean, error_max) = fps_errors(
+            &advice,
+            pair.modes
+                .keys()
+                .filter_map(|m| Some((m.as_str(), mean(m)?))),
+        );
         let row = ValidationRow {
             dataset: pair.dataset.clone(),
             tf: pair.tf.clone(),
@@ -684,11 +782,14 @@ pub fn validate(
             predicted_fps: advised.predicted_fps,
             ert_fps: mean("ert"),
             advice_seconds: advice.seconds,
+            advice_cpu_seconds: advice.cpu_seconds,
+            fps_error_mean_percent: error_mean,
+            fps_error_max_percent: error_max,
         };
         progress(&row);
         rows.push(row);
     }
-    Ok(rows)
+    Ok(Validation { rows, incomplete })
 }
 
 /// The ranking as a table, the recommendation and the time the advice took.
@@ -746,7 +847,7 @@ pub fn advice_text(advice: &Advice) -> String {
     let r = advice.recommended();
     let _ = writeln!(
         text,
-        "\nrecommended: {} (`{}`): {:.2} fps predicted, {:.2}× ERT{}\nadvice took {:.2} s",
+        "\nrecommended: {} (`{}`): {:.2} fps predicted, {:.2}× ERT{}\nadvice took {:.2} s{}",
         r.label,
         r.mode,
         r.predicted_fps,
@@ -760,22 +861,27 @@ pub fn advice_text(advice: &Advice) -> String {
             ),
             _ => String::new(),
         },
-        advice.seconds
+        advice.seconds,
+        advice
+            .cpu_seconds
+            .map(|c| format!(" ({c:.2} s of CPU time)"))
+            .unwrap_or_default()
     );
     text
 }
 
 /// The validation table (Markdown) with a summary and the command that made it.
-pub fn validation_markdown(rows: &[ValidationRow], command: &str) -> String {
+pub fn validation_markdown(validation: &Validation, command: &str) -> String {
     use std::fmt::Write;
+    let rows = &validation.rows;
     let mut text = String::from(
-        "| dataset | tf | frames | image | advised | fps | true best | fps | loss % | advice s |\n\
-         |---|---|---:|---|---|---:|---|---:|---:|---:|\n",
+        "| dataset | tf | frames | image | advised | fps | true best | fps | loss % | fps error mean / max % | advice s (CPU s) |\n\
+         |---|---|---:|---|---|---:|---|---:|---:|---:|---:|\n",
     );
     for r in rows {
         let _ = writeln!(
             text,
-            "| {}{} | {} | {} ({} used) | {}x{} | {} | {:.2} | {} | {:.2} | {:.1} | {:.2} |",
+            "| {}{} | {} | {} | {}x{} | {} | {:.2} | {} | {:.2} | {:.1} | {:.1} / {:.1} | {:.2} ({}) |",
             r.dataset,
             if r.axes.is_empty() {
                 String::new()
@@ -783,8 +889,11 @@ pub fn validation_markdown(rows: &[ValidationRow], command: &str) -> String {
                 format!(" ({})", r.axes)
             },
             r.transfer_function,
-            r.frames,
-            r.advisor_views,
+            if r.frames == 0 {
+                format!("table ({} used)", r.advisor_views)
+            } else {
+                format!("{} ({} used)", r.frames, r.advisor_views)
+            },
             r.size.0,
             r.size.1,
             r.advised,
@@ -792,35 +901,59 @@ pub fn validation_markdown(rows: &[ValidationRow], command: &str) -> String {
             r.best,
             r.best_fps,
             r.loss_percent,
-            r.advice_seconds
+            r.fps_error_mean_percent,
+            r.fps_error_max_percent,
+            r.advice_seconds,
+            r.advice_cpu_seconds
+                .map(|c| format!("{c:.2}"))
+                .unwrap_or_else(|| "–".into())
         );
     }
     let worst = rows.iter().map(|r| r.loss_percent).fold(0.0f64, f64::max);
     let exact = rows.iter().filter(|r| r.advised == r.best).count();
     let within = rows.iter().filter(|r| r.loss_percent <= 5.0).count();
     let slowest = rows.iter().map(|r| r.advice_seconds).fold(0.0f64, f64::max);
+    let slowest_cpu = rows
+        .iter()
+        .filter_map(|r| r.advice_cpu_seconds)
+        .fold(0.0f64, f64::max);
     let _ = writeln!(
         text,
         "\n{} pairs: the advice is the true best in {exact}, within 5 % in {within}; worst loss \
-         {worst:.1} %; slowest advice {slowest:.2} s.\n\nMade by `{command}`.",
-        rows.len()
+         {worst:.1} %; slowest advice {slowest:.2} s wall, {slowest_cpu:.2} s of CPU time. \
+         Predicted frame rates are {:.1} % off the cycle model's on average over the pairs \
+         (per pair the mean over its configurations), {:.1} % at most.",
+        rows.len(),
+        rows.iter().map(|r| r.fps_error_mean_percent).sum::<f64>() / rows.len().max(1) as f64,
+        rows.iter()
+            .map(|r| r.fps_error_max_percent)
+            .fold(0.0f64, f64::max)
     );
+    if !validation.incomplete.is_empty() {
+        let _ = writeln!(
+            text,
+            "\nLeft out, their runs not all there yet: {}.",
+            validation.incomplete.join("; ")
+        );
+    }
+    let _ = writeln!(text, "\nMade by `{command}`.");
     text
 }
 
 /// Writes `validation.md`, `validation.csv` and `validation.json` into `dir`.
 pub fn write_validation(
     dir: &std::path::Path,
-    rows: &[ValidationRow],
+    validation: &Validation,
     command: &str,
 ) -> Result<()> {
     use std::io::Write;
+    let rows = &validation.rows;
     crate::output::write_atomically(&dir.join("validation.md"), |f| {
-        f.write_all(validation_markdown(rows, command).as_bytes())
+        f.write_all(validation_markdown(validation, command).as_bytes())
     })?;
     crate::output::write_atomically(&dir.join("validation.json"), |f| {
         f.write_all(
-            serde_json::to_string_pretty(rows)
+            serde_json::to_string_pretty(validation)
                 .unwrap_or_default()
                 .as_bytes(),
         )
@@ -828,12 +961,12 @@ pub fn write_validation(
     crate::output::write_atomically(&dir.join("validation.csv"), |f| {
         writeln!(
             f,
-            "dataset,tf,transfer_function,axes,frames,advisor_views,width,height,advised,advised_fps,best,best_fps,loss_percent,predicted_fps,ert_fps,advice_seconds"
+            "dataset,tf,transfer_function,axes,frames,advisor_views,width,height,advised,advised_fps,best,best_fps,loss_percent,predicted_fps,ert_fps,advice_seconds,advice_cpu_seconds,fps_error_mean_percent,fps_error_max_percent"
         )?;
         for r in rows {
             writeln!(
                 f,
-                "{},{},{},\"{}\",{},{},{},{},{},{},{},{},{},{},{},{}",
+                "{},{},{},\"{}\",{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                 r.dataset,
                 r.tf,
                 r.transfer_function,
@@ -849,9 +982,151 @@ pub fn write_validation(
                 r.loss_percent,
                 r.predicted_fps,
                 r.ert_fps.map(|f| f.to_string()).unwrap_or_default(),
-                r.advice_seconds
+                r.advice_seconds,
+                r.advice_cpu_seconds
+                    .map(|c| c.to_string())
+                    .unwrap_or_default(),
+                r.fps_error_mean_percent,
+                r.fps_error_max_percent
             )?;
         }
         Ok(())
+    })
+}
+
+/// Validates against a table of mean frame rates as `vizsim table` writes it (CSV: `dataset,tf,`
+/// then one column per mode labelled `ERT`, `8³`, `8³+h`; rows labelled `vessel (aneurism)`,
+/// `'0'`), e.g. the protocol's `reports/paper-protocol/tables/cycle-fps.csv`, for which no
+/// results folder is kept. The table does not say its image size, frames or hardware: the
+/// advisor runs with `size`, `views` and `hardware`. Whether a map fits is the advisor's own
+/// test (`map_bits` against `occupancy.sram_bits`).
+pub fn validate_table(
+    path: &std::path::Path,
+    data_dir: Option<&std::path::Path>,
+    hardware: &HardwareConfig,
+    size: (u32, u32),
+    views: &[String],
+    max_rays: u64,
+    mut progress: impl FnMut(&ValidationRow),
+) -> Result<Validation> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let bad = |line: usize, message: String| Error::format(path, format!("line {line}: {message}"));
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines
+        .next()
+        .ok_or_else(|| bad(1, "empty table".into()))?
+        .split(',')
+        .collect();
+    if header.len() < 3 || header[0] != "dataset" || header[1] != "tf" {
+        return Err(bad(1, "expected a header `dataset,tf,MODE...`".into()));
+    }
+    // Column label -> mode: `ERT`, `N³` (leapN), `N³+h` (leapN+hier); others are ignored.
+    let modes: Vec<Option<String>> = header[2..]
+        .iter()
+        .map(|label| {
+            if *label == "ERT" {
+                return Some("ert".to_string());
+            }
+            let (n, hier) = match label.strip_suffix("+h") {
+                Some(n) => (n, true),
+                None => (*label, false),
+            };
+            let n: usize = n.strip_suffix('³')?.parse().ok()?;
+            Some(format!("ert+leap{n}{}", if hier { "+hier" } else { "" }))
+        })
+        .collect();
+    let mut rows = Vec::new();
+    for (i, line) in lines.enumerate() {
+        let number = i + 2;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let cells: Vec<&str> = line.split(',').collect();
+        if cells.len() != header.len() {
+            return Err(bad(
+                number,
+                format!("{} cells, the header has {}", cells.len(), header.len()),
+            ));
+        }
+        // `vessel (aneurism)`, `skull (stand-in: tooth)`: the published name, which the
+        // dataset aliases resolve to the data (or its stand-in).
+        let dataset = cells[0].split(" (").next().unwrap_or(cells[0]).trim();
+        let tf = match cells[1] {
+            "'0'" | "zero" => "zero",
+            "class" => "class",
+            other => {
+                return Err(bad(
+                    number,
+                    format!("transfer function `{other}`: expected '0' or class"),
+                ))
+            }
+        };
+        let volume = crate::volume::dataset::load(dataset, data_dir)?;
+        let base = RunDescription {
+            size,
+            ..RunDescription::new(dataset, tf, Model::Step, hardware.clone())
+        };
+        let advice = advise(
+            &base,
+            &volume,
+            &AdviseOptions {
+                views: views.to_vec(),
+                sample_size: reduced_size(size, max_rays),
+                structures: vec![Structure::Map],
+            },
+        )?;
+        let truth: Vec<(String, f64)> = modes
+            .iter()
+            .zip(&cells[2..])
+            .filter_map(|(m, c)| Some((m.clone()?, c.parse::<f64>().ok()?)))
+            .filter(|(m, _)| advice.ranking.iter().any(|c| &c.mode == m && c.fits))
+            .collect();
+        let fps_of = |m: &str| truth.iter().find(|(t, _)| t == m).map(|(_, f)| *f);
+        let Some(advised) = advice
+            .ranking
+            .iter()
+            .find(|c| c.fits && fps_of(&c.mode).is_some())
+        else {
+            return Err(bad(number, "no configuration that fits the SRAM".into()));
+        };
+        let (best, best_fps) = truth
+            .iter()
+            .cloned()
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .expect("the advised configuration is in the table");
+        let advised_fps = fps_of(&advised.mode).unwrap_or(0.0);
+        let (error_mean, error_max) = fps_errors(
+            &advice,
+            modes
+                .iter()
+                .zip(&cells[2..])
+                .filter_map(|(m, c)| Some((m.as_deref()?, c.parse::<f64>().ok()?))),
+        );
+        let row = ValidationRow {
+            dataset: dataset.to_string(),
+            tf: tf.to_string(),
+            transfer_function: advice.transfer_function.clone(),
+            axes: String::new(),
+            frames: 0,
+            advisor_views: views.len(),
+            size,
+            advised: advised.mode.clone(),
+            advised_fps,
+            best,
+            best_fps,
+            loss_percent: 100.0 * (1.0 - advised_fps / best_fps.max(1e-12)),
+            predicted_fps: advised.predicted_fps,
+            ert_fps: fps_of("ert"),
+            advice_seconds: advice.seconds,
+            advice_cpu_seconds: advice.cpu_seconds,
+            fps_error_mean_percent: error_mean,
+            fps_error_max_percent: error_max,
+        };
+        progress(&row);
+        rows.push(row);
+    }
+    Ok(Validation {
+        rows,
+        incomplete: Vec::new(),
     })
 }

@@ -34,7 +34,9 @@ fn advice_is_deterministic() {
     let opts = options(2, (24, 24), vec![Structure::Map, Structure::Distance]);
     let strip = |a: &advise::Advice| {
         let mut v = serde_json::to_value(a).unwrap();
+        // Wall and CPU time are the only fields allowed to differ.
         v.as_object_mut().unwrap().remove("seconds");
+        v.as_object_mut().unwrap().remove("cpu_seconds");
         v
     };
     let first = advise::advise(&run, &volume, &opts).unwrap();
@@ -132,6 +134,7 @@ fn bad_input_gives_a_clear_error() {
         &advise::ValidateOptions {
             max_rays: 256,
             max_views: 1,
+            structures: None,
         },
         |_| {},
     )
@@ -233,4 +236,60 @@ fn cli_prints_the_ranking_and_json() {
         .iter()
         .any(|c| c["mode"] == rec && c["fits"] == true));
     assert!(v["seconds"].as_f64().unwrap() >= 0.0);
+}
+
+#[test]
+fn a_table_is_validated_against_its_own_frame_rates() {
+    // Frame rates made up so that the truth is known: 8³ + hierarchy is the best that fits.
+    let dir = std::env::temp_dir().join(format!("vizsim-advise-table-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let table = dir.join("cycle-fps.csv");
+    std::fs::write(
+        &table,
+        "dataset,tf,none,ERT,8³,8³+h,16³\nphantom:sphere:32,class,1.0,10.0,5.0,20.0,2.0\n",
+    )
+    .unwrap();
+    let hardware = HardwareConfig::load(None, &[]).unwrap();
+    let v = advise::validate_table(
+        &table,
+        None,
+        &hardware,
+        (32, 32),
+        &advise::orbit_views(1, 0),
+        256,
+        |_| {},
+    )
+    .unwrap();
+    assert_eq!(v.rows.len(), 1);
+    let row = &v.rows[0];
+    assert_eq!((row.best.as_str(), row.best_fps), ("ert+leap8+hier", 20.0));
+    let fps = [
+        ("ert", 10.0),
+        ("ert+leap8", 5.0),
+        ("ert+leap8+hier", 20.0),
+        ("ert+leap16", 2.0),
+    ];
+    let advised = fps.iter().find(|(m, _)| *m == row.advised).unwrap().1;
+    assert_eq!(row.advised_fps, advised);
+    assert!((row.loss_percent - 100.0 * (1.0 - advised / 20.0)).abs() < 1e-9);
+    assert_eq!(row.ert_fps, Some(10.0));
+
+    // A malformed row names the file and the line.
+    std::fs::write(&table, "dataset,tf,ERT\nphantom:sphere:32,grey,1.0\n").unwrap();
+    let err = advise::validate_table(
+        &table,
+        None,
+        &hardware,
+        (32, 32),
+        &advise::orbit_views(1, 0),
+        256,
+        |_| {},
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("cycle-fps.csv") && err.contains("line 2") && err.contains("grey"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -40,10 +40,13 @@ pub struct AdviseArgs {
     /// many; the counts are scaled back up). Larger is closer and slower.
     #[arg(long, default_value_t = 2048)]
     rays: u64,
-    /// Structures to rank besides ERT, comma-separated: map, distance, leap-values. The
-    /// distance volume and leap values are built for each run (about a second each on 256³).
-    #[arg(long, default_value = "map", value_delimiter = ',')]
-    structures: Vec<String>,
+    /// Structures to rank besides ERT, comma-separated: map (default), distance, leap-values.
+    /// The distance volume and leap values are built for each run (about a second each on
+    /// 256³).
+    /// With --validate: the structures the advice may pick (default: every structure the
+    /// folder ran); the true best is always over every configuration there.
+    #[arg(long, value_delimiter = ',')]
+    structures: Option<Vec<String>>,
     /// Hardware configuration TOML (default: the embedded, calibrated vizard2.toml).
     #[arg(long)]
     config: Option<PathBuf>,
@@ -54,7 +57,10 @@ pub struct AdviseArgs {
     #[arg(long)]
     json: bool,
     /// Validate: run the advisor for every (dataset, tf) of this sweep results folder and
-    /// compare its pick with the cycle model's fastest configuration that fits the SRAM.
+    /// compare its pick with the cycle model's fastest configuration that fits the SRAM. A
+    /// `.csv` table of mean frame rates (`vizsim table`'s layout, e.g. the protocol's
+    /// reports/paper-protocol/tables/cycle-fps.csv) is accepted too: then --size, --views and
+    /// the hardware options say how it was run.
     #[arg(long, value_name = "RESULTS_DIR")]
     validate: Option<PathBuf>,
     /// With --validate: most frames of a pair the advisor uses (evenly spaced among them).
@@ -70,16 +76,8 @@ pub fn run(args: AdviseArgs) -> Result<()> {
         return validate(&args, dir);
     }
     let dataset = args.dataset.as_deref().expect("clap requires --dataset");
-    let structures = args
-        .structures
-        .iter()
-        .map(|s| Structure::parse(s).map_err(|e| anyhow::anyhow!("--structures {e}")))
-        .collect::<Result<Vec<_>>>()?;
-    let hardware = HardwareConfig::load(args.config.as_deref(), &args.overrides);
-    let hardware = match &args.config {
-        Some(p) => hardware.with_context(|| format!("--config {}", p.display()))?,
-        None => hardware?,
-    };
+    let structures = parse_structures(&args)?.unwrap_or_else(|| vec![Structure::Map]);
+    let hardware = load_hardware(&args)?;
     let size = parse_image_size(&args.size).context("--size")?;
     anyhow::ensure!(args.views >= 1, "--views 0: at least one view");
     anyhow::ensure!(args.rays >= 64, "--rays {}: at least 64", args.rays);
@@ -109,12 +107,13 @@ fn validate(args: &AdviseArgs, dir: &std::path::Path) -> Result<()> {
     let options = ValidateOptions {
         max_rays: args.rays,
         max_views: args.max_views,
+        structures: parse_structures(args)?,
     };
     if let Some(out) = &args.out {
         std::fs::create_dir_all(out).with_context(|| format!("--out {}", out.display()))?;
     }
     let quiet = args.json;
-    let rows = advise::validate(dir, data_dir.as_deref(), &options, |row| {
+    let report = |row: &advise::ValidationRow| {
         if !quiet {
             eprintln!(
                 "{} {}: advised {} ({:.2} fps), best {} ({:.2} fps), loss {:.1} %, {:.2} s",
@@ -128,16 +127,53 @@ fn validate(args: &AdviseArgs, dir: &std::path::Path) -> Result<()> {
                 row.advice_seconds
             );
         }
-    })
+    };
+    let validation = if dir.extension().is_some_and(|e| e == "csv") {
+        // A table of mean frame rates (the protocol's cycle-fps.csv): the advisor runs with
+        // --size, --views and the hardware options, which the table cannot say.
+        let size = parse_image_size(&args.size).context("--size")?;
+        advise::validate_table(
+            dir,
+            data_dir.as_deref(),
+            &load_hardware(args)?,
+            size,
+            &advise::orbit_views(args.views, 0),
+            args.rays,
+            report,
+        )
+    } else {
+        advise::validate(dir, data_dir.as_deref(), &options, report)
+    }
     .with_context(|| format!("--validate {}", dir.display()))?;
     let command = super::invocation();
     if let Some(out) = &args.out {
-        advise::write_validation(out, &rows, &command)?;
+        advise::write_validation(out, &validation, &command)?;
     }
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&rows)?);
+        println!("{}", serde_json::to_string_pretty(&validation)?);
     } else {
-        print!("{}", advise::validation_markdown(&rows, &command));
+        print!("{}", advise::validation_markdown(&validation, &command));
     }
     Ok(())
+}
+
+/// `--config` with `--set` applied.
+fn load_hardware(args: &AdviseArgs) -> Result<HardwareConfig> {
+    let hardware = HardwareConfig::load(args.config.as_deref(), &args.overrides);
+    Ok(match &args.config {
+        Some(p) => hardware.with_context(|| format!("--config {}", p.display()))?,
+        None => hardware?,
+    })
+}
+
+/// `--structures`, when given.
+fn parse_structures(args: &AdviseArgs) -> Result<Option<Vec<Structure>>> {
+    args.structures
+        .as_ref()
+        .map(|list| {
+            list.iter()
+                .map(|s| Structure::parse(s).map_err(|e| anyhow::anyhow!("--structures {e}")))
+                .collect::<Result<Vec<_>>>()
+        })
+        .transpose()
 }
