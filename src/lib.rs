@@ -4,6 +4,7 @@
 // Per-axis loops over [_; 3] index several arrays at once; iterator chains would hide that.
 #![allow(clippy::needless_range_loop)]
 
+pub mod advise;
 pub mod arch;
 pub mod camera;
 pub mod compare;

@@ -2,6 +2,7 @@
 //! the library's descriptions (a run is a `vizsim::run::RunDescription`) and print; library
 //! errors carry what and where, and here get the option they came from.
 
+mod advise;
 mod compare;
 mod demo;
 mod info;
@@ -72,6 +73,10 @@ enum Command {
     /// Charts of a sweep's results (PNG + SVG): cycles or steps per frame against the frame,
     /// skippable sub-cubes and frame rate against the sub-cube size, swept fields.
     Plot(results::PlotArgs),
+    /// Predict the frame rate of every leaping configuration (map sizes, hierarchy, distance
+    /// volume, leap values) from the functional model and a cost model, and recommend the
+    /// fastest that fits the SRAM; --validate compares the advice with a sweep's results.
+    Advise(advise::AdviseArgs),
     /// Render orbits and a gallery of the phantoms and the datasets present into reports/demo/.
     Demo(demo::DemoArgs),
     /// Volume updates: a download over the host link with the maps built on the way, a scan
@@ -115,6 +120,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Merge(args) => results::merge(args),
         Command::Table(args) => results::table(args),
         Command::Plot(args) => results::plot(args),
+        Command::Advise(args) => advise::run(args),
         Command::Demo(args) => demo::run(args),
         Command::Update(args) => update::run(args),
         Command::Sequence(args) => sequence::run(args),

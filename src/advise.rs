@@ -1,0 +1,1132 @@
+//! `vizsim advise`: predicts the frame rate of every leaping configuration of a dataset and
+//! transfer function without the cycle model, ranks them and recommends the fastest whose
+//! occupancy map fits the configured SRAM (issue 19; the model is explained in docs/advise.md).
+//!
+//! Two measured quantities per configuration, one cost model:
+//! - **steps and samples** from the functional fixed-point model (`run::execute` with the step
+//!   model, through the one run path) on the requested views at a reduced image size; sums over
+//!   rays scale with the number of rays, so they are multiplied by the pixel ratio. At the full
+//!   size the counts are the functional model's exactly.
+//! - **cycles** from steps and samples by a cost model whose parameters come from the hardware
+//!   configuration (SDRAM timing, modules, rays in flight, skip latency) and one calibration
+//!   figure of the memory (the row-miss rate of the voxel reads, docs/model.md).
+
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::config::{HardwareConfig, LeapRegions, LeapStructure};
+use crate::error::{Error, Result};
+use crate::experiment::spec::Mode;
+use crate::occupancy::OccupancyKind;
+use crate::run::{self, Model, RunDescription};
+use crate::volume::Volume;
+
+/// Leaping structures the advisor can consider.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Structure {
+    /// Occupancy maps in on-chip SRAM, every sub-cube size, with and without the hierarchy.
+    Map,
+    /// Distance volumes (4 and 8 bits) in SDRAM: a distance transform per transfer function.
+    Distance,
+    /// Lossless leap values in the voxel words (empty regions): a segmentation per volume.
+    LeapValues,
+}
+
+impl Structure {
+    pub fn parse(text: &str) -> std::result::Result<Structure, String> {
+        match text {
+            "map" => Ok(Structure::Map),
+            "distance" => Ok(Structure::Distance),
+            "leap-values" | "leapvalues" => Ok(Structure::LeapValues),
+            other => Err(format!(
+                "`{other}`: expected `map`, `distance` or `leap-values`"
+            )),
+        }
+    }
+}
+
+/// What the advice is computed on.
+#[derive(Clone, Debug, Serialize)]
+pub struct AdviseOptions {
+    /// Views whose mean frame rate is predicted (`orbit:K/N`, `front`...).
+    pub views: Vec<String>,
+    /// Image size the functional model runs at; the prediction is for the run's own size.
+    pub sample_size: (u32, u32),
+    /// Structures to consider; ERT alone is always the baseline.
+    pub structures: Vec<Structure>,
+}
+
+/// `count` views evenly spaced on the 72-frame orbit, starting at frame `first`.
+pub fn orbit_views(count: u32, first: u32) -> Vec<String> {
+    let count = count.clamp(1, 72);
+    (0..count)
+        .map(|i| format!("orbit:{}/72", (first + i * 72 / count) % 72))
+        .collect()
+}
+
+/// The largest image of at most `max_rays` rays with the run's aspect ratio, never larger than
+/// the run's own size (at least 8x8).
+pub fn reduced_size(size: (u32, u32), max_rays: u64) -> (u32, u32) {
+    let rays = size.0 as u64 * size.1 as u64;
+    if rays <= max_rays {
+        return size;
+    }
+    let f = (max_rays as f64 / rays as f64).sqrt();
+    let scale = |n: u32| ((n as f64 * f).floor() as u32).clamp(8.min(n), n);
+    (scale(size.0), scale(size.1))
+}
+
+/// The cost model's parameters, from the hardware configuration (docs/advise.md).
+#[derive(Clone, Debug, Serialize)]
+pub struct CostModel {
+    /// Cycles a row miss adds to a module's access (t_RP + t_RCD).
+    pub miss_penalty: f64,
+    /// Row misses per voxel read of a sample with a map or without leaping: the calibrated
+    /// figure of docs/model.md (97 % row hits with lagging-first selection).
+    pub row_miss_rate: f64,
+    /// Memory cycles a sample occupies each module: 1 + miss rate × penalty.
+    pub cycles_per_sample: f64,
+    /// Memory modules a step's extra word (distance volume) is spread over.
+    pub modules: f64,
+    /// Cycles a ray waits from issuing a read to its next decision: SDRAM access with a row
+    /// miss (t_RP + t_RCD + CL), two cycles of queueing and return, the skip unit's latency.
+    pub read_round_trip: f64,
+    /// Rays in flight.
+    pub rays: f64,
+    /// Voxels between adjacent rays (the image's view width over its pixels): below 1, several
+    /// rays read the same words.
+    pub ray_spacing: f64,
+    /// Distance words share the voxel's bank (`memory.distance_placement = same-bank`): the
+    /// distance read's row miss also closes the voxel row.
+    pub distance_same_bank: bool,
+}
+
+/// The calibrated row-miss rate of voxel reads (docs/model.md, "Calibration": about 97 % row
+/// hits with lagging-first selection on the protocol's volumes).
+pub const CALIBRATED_ROW_MISS_RATE: f64 = 0.03;
+
+impl CostModel {
+    /// `ray_spacing`: voxels between adjacent rays of the run's image.
+    pub fn new(config: &HardwareConfig, ray_spacing: f64) -> CostModel {
+        let s = &config.sdram;
+        let miss_penalty = (s.t_rp + s.t_rcd) as f64;
+        let row_miss_rate = CALIBRATED_ROW_MISS_RATE;
+        CostModel {
+            miss_penalty,
+            row_miss_rate,
+            cycles_per_sample: 1.0 + row_miss_rate * miss_penalty,
+            modules: config.memory.modules() as f64,
+            read_round_trip: (s.t_rp + s.t_rcd + s.cl) as f64 + 2.0 + config.skip.latency as f64,
+            rays: config.ray_queue.rays.max(1) as f64,
+            ray_spacing,
+            distance_same_bank: config.memory.distance_placement
+                == crate::arch::address_map::DistancePlacement::SameBank,
+        }
+    }
+
+    /// Predicted cycles of a frame that takes `steps` issue steps, `samples` of them samples.
+    pub fn cycles(&self, structure: CandidateStructure, steps: f64, samples: f64) -> f64 {
+        if steps <= 0.0 {
+            return 0.0;
+        }
+        let sample_share = (samples / steps).clamp(0.0, 1.0);
+        // One step per clock at best; a sample's extra memory time (row misses) stalls issue
+        // only when the memory has no slack, i.e. when the slots around it are samples too,
+        // which happens with the probability of a slot being a sample.
+        let issue = 1.0 + (self.cycles_per_sample - 1.0) * sample_share * sample_share;
+        let per_step = match structure {
+            CandidateStructure::None | CandidateStructure::Map => issue,
+            CandidateStructure::Distance => {
+                // Every step reads a distance word first: the ray waits a round trip (bound:
+                // R rays per round trip). In the voxel's bank (same-bank placement) a sample
+                // step's distance read and voxel read open two rows of one bank in turn: two
+                // row misses on one of the modules, shared by the rays that read the same words
+                // when rays are closer than a voxel (docs/advise.md).
+                let latency = self.read_round_trip / self.rays;
+                let ping_pong = if self.distance_same_bank {
+                    2.0 * self.miss_penalty / self.modules * self.ray_spacing.min(1.0).sqrt()
+                } else {
+                    0.0
+                };
+                issue.max(latency).max(1.0 + sample_share * ping_pong)
+            }
+            CandidateStructure::LeapValues => {
+                // The next position waits for the step's own sample words; every step reads.
+                let latency = self.read_round_trip / self.rays;
+                issue.max(latency).max(self.cycles_per_sample)
+            }
+        };
+        steps * per_step
+    }
+}
+
+/// A candidate's structure, for the cost model.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CandidateStructure {
+    None,
+    Map,
+    Distance,
+    LeapValues,
+}
+
+/// One configuration's prediction.
+#[derive(Clone, Debug, Serialize)]
+pub struct Candidate {
+    /// The experiment mode that runs this configuration (`ert+leap8+hier`).
+    pub mode: String,
+    /// As a reader reads it: `ERT`, `8³ + hierarchy`, `distance 8 bits`.
+    pub label: String,
+    pub structure: CandidateStructure,
+    pub subcube: usize,
+    pub hierarchy: bool,
+    /// SRAM bits the occupancy map needs (map candidates).
+    pub map_bits: Option<u64>,
+    /// The map fits `occupancy.sram_bits` (always true without a map).
+    pub fits: bool,
+    /// Empty sub-cubes of the map, percent.
+    pub skippable_percent: Option<f64>,
+    /// Mean per frame at the run's image size (scaled from the reduced image).
+    pub steps: f64,
+    pub samples: f64,
+    pub leaps: f64,
+    pub predicted_cycles: f64,
+    pub predicted_fps: f64,
+    /// Predicted frame rate over ERT alone's.
+    pub speedup_over_ert: f64,
+    /// May be recommended (validation restricted to some structures); always true in advice.
+    #[serde(skip)]
+    pub allowed: bool,
+}
+
+/// The advisor's answer.
+#[derive(Clone, Debug, Serialize)]
+pub struct Advice {
+    pub dataset: String,
+    pub tf: String,
+    pub transfer_function: String,
+    pub dims: [usize; 3],
+    pub size: (u32, u32),
+    pub sample_size: (u32, u32),
+    pub views: Vec<String>,
+    pub sram_bits: u64,
+    pub cost_model: CostModel,
+    /// Best predicted first.
+    pub ranking: Vec<Candidate>,
+    /// The fastest predicted candidate that fits the SRAM (`mode`).
+    pub recommended: String,
+    /// Wall time of the advice (loading the volume excluded), seconds.
+    pub seconds: f64,
+    /// CPU time of the process over the advice, all threads, seconds (Linux; on a shared
+    /// machine the wall time includes waiting for a core).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cpu_seconds: Option<f64>,
+}
+
+/// User + system CPU time of this process so far, from /proc/self/stat (Linux), seconds.
+fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name (which may hold spaces) end with ')'.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    // utime and stime are fields 14 and 15 of the line, 12 and 13 after the name.
+    let ticks = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
+    // The clock tick is 100 Hz on every Linux configuration vizsim runs on (USER_HZ).
+    Some(ticks / 100.0)
+}
+
+impl Advice {
+    pub fn recommended(&self) -> &Candidate {
+        self.ranking
+            .iter()
+            .find(|c| c.mode == self.recommended)
+            .expect("the recommendation is one of the candidates")
+    }
+}
+
+/// The modes the advisor ranks for a volume of `dims`: ERT, every map size 2³..64³ not larger
+/// than the volume with and without the hierarchy (2³..32³), the distance volumes, leap values.
+pub fn candidate_modes(dims: [usize; 3], structures: &[Structure]) -> Vec<Mode> {
+    let mut names = vec!["ert".to_string()];
+    let largest = dims.iter().copied().max().unwrap_or(0);
+    if structures.contains(&Structure::Map) {
+        for n in [2usize, 4, 8, 16, 32, 64] {
+            if n <= largest {
+                names.push(format!("ert+leap{n}"));
+                if n <= 32 {
+                    names.push(format!("ert+leap{n}+hier"));
+                }
+            }
+        }
+    }
+    if structures.contains(&Structure::Distance) {
+        names.push("ert+distance4".into());
+        names.push("ert+distance8".into());
+    }
+    if structures.contains(&Structure::LeapValues) {
+        names.push("ert+leapvalues".into());
+    }
+    names
+        .iter()
+        .map(|n| Mode::parse(n).expect("the advisor's modes parse"))
+        .collect()
+}
+
+/// SRAM bits of a map of `subcube`³ sub-cubes (with the hierarchy: padded to whole 2×2×2
+/// groups, one byte per group), as `OccupancyMap::storage_bits` counts them.
+pub fn map_bits(dims: [usize; 3], subcube: usize, hierarchy: bool) -> u64 {
+    let cells = dims.map(|d| d.div_ceil(subcube));
+    if hierarchy {
+        8 * cells.iter().map(|c| c.div_ceil(2) as u64).product::<u64>()
+    } else {
+        cells.iter().map(|&c| c as u64).product()
+    }
+}
+
+/// `base`'s hardware with `mode` applied the way an experiment applies it (ERT, sub-cube,
+/// hierarchy, structure; the map kind from the transfer function: '0' for `zero`, else class).
+pub fn apply_mode(base: &HardwareConfig, mode: &Mode, tf: &str) -> HardwareConfig {
+    let mut config = base.clone();
+    config.compositing.ert = mode.ert;
+    config.occupancy.subcube = mode.subcube;
+    config.occupancy.hierarchy = mode.hierarchy;
+    config.occupancy.kind = if tf == "zero" {
+        OccupancyKind::Zero
+    } else {
+        OccupancyKind::Class
+    };
+    if mode.distance_bits > 0 {
+        config.occupancy.structure = LeapStructure::Distance;
+        config.occupancy.distance_bits = mode.distance_bits;
+    } else if let Some(regions) = mode.leap_values {
+        config.occupancy.structure = LeapStructure::LeapValues;
+        config.leap_values.regions = regions;
+    } else {
+        config.occupancy.structure = LeapStructure::Map;
+    }
+    config
+}
+
+fn label(mode: &Mode) -> String {
+    if mode.distance_bits > 0 {
+        format!("distance {} bits", mode.distance_bits)
+    } else if mode.leap_values == Some(LeapRegions::Empty) {
+        "leap values".into()
+    } else if mode.subcube > 0 {
+        format!(
+            "{}³{}",
+            mode.subcube,
+            if mode.hierarchy { " + hierarchy" } else { "" }
+        )
+    } else {
+        "ERT".into()
+    }
+}
+
+/// Runs the advisor for `base` (its dataset, transfer function, image size, hardware) on
+/// `volume`, which must be the run's dataset.
+pub fn advise(base: &RunDescription, volume: &Volume, options: &AdviseOptions) -> Result<Advice> {
+    let start = Instant::now();
+    let cpu_start = process_cpu_seconds();
+    if options.views.is_empty() {
+        return Err(Error::Invalid("advise: no views to predict".into()));
+    }
+    let (w, h) = options.sample_size;
+    if w == 0 || h == 0 || w > base.size.0 || h > base.size.1 {
+        return Err(Error::Invalid(format!(
+            "advise: sample size {w}x{h} must be at least 1x1 and at most the image size {}x{}",
+            base.size.0, base.size.1
+        )));
+    }
+    let scale = (base.size.0 as f64 * base.size.1 as f64) / (w as f64 * h as f64);
+    // The view width is the volume's largest extent (`Camera::for_volume`).
+    let ray_spacing = *volume.dims.iter().max().unwrap_or(&1) as f64 / base.size.0.max(1) as f64;
+    let cost = CostModel::new(&base.hardware, ray_spacing);
+    let sram_bits = base.hardware.occupancy.sram_bits;
+    let mut transfer_function = String::new();
+    let mut ranking = Vec::new();
+    for mode in candidate_modes(volume.dims, &options.structures) {
+        let mut hardware = apply_mode(&base.hardware, &mode, &base.tf);
+        let (map_bits, fits) = if mode.subcube > 0 {
+            let bits = map_bits(volume.dims, mode.subcube, mode.hierarchy);
+            if bits > sram_bits {
+                // Predicted anyway (with the SRAM raised) so the ranking shows what a larger
+                // SRAM would gain; never recommended.
+                hardware.occupancy.sram_bits = bits.next_power_of_two();
+            }
+            (Some(bits), bits <= sram_bits)
+        } else {
+            (None, true)
+        };
+        let run = RunDescription {
+            model: Model::Step,
+            size: (w, h),
+            hardware,
+            ..base.clone()
+        };
+        let prepared = run::prepare(&run, volume)?;
+        transfer_function = prepared.transfer_function.clone();
+        let (mut steps, mut samples, mut leaps) = (0u64, 0u64, 0u64);
+        let mut skippable = None;
+        for view in &options.views {
+            let run = RunDescription {
+                view: view.clone(),
+                ..run.clone()
+            };
+            let report = run::execute(&run, &prepared, run::Probes::default())?;
+            steps += report.measurements.steps;
+            samples += report.measurements.samples;
+            leaps += report.measurements.leaps;
+            skippable = report.measurements.skippable_subcubes_percent;
+        }
+        let per_frame = scale / options.views.len() as f64;
+        let (steps, samples, leaps) = (
+            steps as f64 * per_frame,
+            samples as f64 * per_frame,
+            leaps as f64 * per_frame,
+        );
+        let structure = if mode.distance_bits > 0 {
+            CandidateStructure::Distance
+        } else if mode.leap_values.is_some() {
+            CandidateStructure::LeapValues
+        } else if mode.subcube > 0 {
+            CandidateStructure::Map
+        } else {
+            CandidateStructure::None
+        };
+        let cycles = cost.cycles(structure, steps, samples);
+        ranking.push(Candidate {
+            mode: mode.name(),
+            label: label(&mode),
+            structure,
+            subcube: mode.subcube,
+            hierarchy: mode.hierarchy,
+            map_bits,
+            fits,
+            skippable_percent: skippable,
+            steps,
+            samples,
+            leaps,
+            predicted_cycles: cycles,
+            predicted_fps: base.hardware.clock.frequency_mhz * 1e6 / cycles.max(1.0),
+            speedup_over_ert: 0.0,
+            allowed: true,
+        });
+    }
+    let ert_fps = ranking
+        .iter()
+        .find(|c| c.mode == "ert")
+        .map(|c| c.predicted_fps)
+        .expect("ERT is always a candidate");
+    for c in &mut ranking {
+        c.speedup_over_ert = c.predicted_fps / ert_fps;
+    }
+    // Stable: among equal predictions the earlier (simpler, smaller map) candidate stays first.
+    ranking.sort_by(|a, b| b.predicted_fps.total_cmp(&a.predicted_fps));
+    let recommended = ranking
+        .iter()
+        .find(|c| c.fits)
+        .map(|c| c.mode.clone())
+        .expect("ERT always fits");
+    Ok(Advice {
+        dataset: base.dataset.clone(),
+        tf: base.tf.clone(),
+        transfer_function,
+        dims: volume.dims,
+        size: base.size,
+        sample_size: options.sample_size,
+        views: options.views.clone(),
+        sram_bits,
+        cost_model: cost,
+        ranking,
+        recommended,
+        seconds: start.elapsed().as_secs_f64(),
+        cpu_seconds: process_cpu_seconds()
+            .zip(cpu_start)
+            .map(|(end, start)| end - start),
+    })
+}
+
+/// One (dataset, transfer function, swept fields) of a results folder: the advice against the
+/// cycle model's truth.
+#[derive(Clone, Debug, Serialize)]
+pub struct ValidationRow {
+    pub dataset: String,
+    pub tf: String,
+    pub transfer_function: String,
+    /// Swept fields of the pair other than the mode's (`skip.policy=leap-only`), or empty.
+    pub axes: String,
+    /// Frames of the truth (mean over them; 0: a table's means, frames not known) and the views
+    /// the advisor used.
+    pub frames: usize,
+    pub advisor_views: usize,
+    pub size: (u32, u32),
+    /// The advisor's pick among the configurations the folder has that fit the SRAM.
+    pub advised: String,
+    pub advised_fps: f64,
+    /// The fastest configuration of the folder that fits the SRAM, by the cycle model.
+    pub best: String,
+    pub best_fps: f64,
+    /// 1 − advised / best frame rate, percent.
+    pub loss_percent: f64,
+    /// The advisor's predicted frame rate of its pick and the cycle model's ERT frame rate.
+    pub predicted_fps: f64,
+    pub ert_fps: Option<f64>,
+    pub advice_seconds: f64,
+    pub advice_cpu_seconds: Option<f64>,
+    /// Predicted against measured frame rate over every configuration of the pair the advisor
+    /// predicted: mean and largest |predicted / measured − 1|, percent.
+    pub fps_error_mean_percent: f64,
+    pub fps_error_max_percent: f64,
+}
+
+/// Mean and largest |predicted / measured − 1| in percent over `(mode, measured fps)`.
+fn fps_errors<'a>(advice: &Advice, truth: impl Iterator<Item = (&'a str, f64)>) -> (f64, f64) {
+    let errors: Vec<f64> = truth
+        .filter_map(|(m, fps)| {
+            let c = advice.ranking.iter().find(|c| c.mode == m)?;
+            Some(100.0 * (c.predicted_fps / fps - 1.0).abs())
+        })
+        .collect();
+    let mean = errors.iter().sum::<f64>() / errors.len().max(1) as f64;
+    (mean, errors.iter().copied().fold(0.0, f64::max))
+}
+
+/// How `validate` runs the advisor.
+#[derive(Clone, Debug)]
+pub struct ValidateOptions {
+    /// Largest number of rays per view the functional model runs (`reduced_size`).
+    pub max_rays: u64,
+    /// Largest number of the pair's frames the advisor uses (evenly spaced among them).
+    pub max_views: usize,
+    /// Structures the advisor may pick from; `None`: every structure the folder ran. The true
+    /// best is always taken over every configuration of the folder that fits.
+    pub structures: Option<Vec<Structure>>,
+}
+
+/// Mean cycle-model frame rate per mode of one pair, and what is needed to re-run the advisor.
+struct Pair {
+    dataset: String,
+    tf: String,
+    transfer_function: String,
+    axes: Vec<(String, serde_json::Value)>,
+    size: (u32, u32),
+    views: std::collections::BTreeSet<(u32, String)>,
+    /// Result lines of the pair.
+    lines: usize,
+    /// mode -> (frame -> fps, fits the default SRAM)
+    modes: std::collections::BTreeMap<String, (std::collections::BTreeMap<u32, f64>, bool)>,
+}
+
+/// Fields an experiment mode sets (never part of a pair's identity).
+const MODE_FIELDS: &[&str] = &[
+    "compositing.ert",
+    "occupancy.subcube",
+    "occupancy.hierarchy",
+    "occupancy.kind",
+    "occupancy.structure",
+    "occupancy.distance_bits",
+    "leap_values.regions",
+];
+
+/// What `validate` found: a row per pair whose results are all there, and the pairs left out.
+#[derive(Clone, Debug, Serialize)]
+pub struct Validation {
+    pub rows: Vec<ValidationRow>,
+    /// Pairs whose runs are not all in the folder yet (`dataset tf: N of M runs`).
+    pub incomplete: Vec<String>,
+}
+
+/// The pair's identity: dataset, tf and the swept fields other than the mode's.
+fn pair_id(dataset: &str, tf: &str, axes: &[(String, serde_json::Value)]) -> String {
+    format!(
+        "{dataset}\u{0}{tf}\u{0}{}",
+        serde_json::to_string(axes).unwrap_or_default()
+    )
+}
+
+fn axes_of(v: &serde_json::Value) -> Vec<(String, serde_json::Value)> {
+    v.as_object()
+        .map(|o| {
+            o.iter()
+                .filter(|(k, _)| !MODE_FIELDS.contains(&k.as_str()))
+                .map(|(k, v)| (k.clone(), v.clone()))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// A mode the advisor ranks: ERT with a map, a distance volume or lossless leap values.
+fn ranked_mode(mode: &str) -> bool {
+    Mode::parse(mode).is_ok_and(|m| {
+        m.ert && m.bricks == 0 && m.iso.is_none() && m.leap_values != Some(LeapRegions::Homogeneous)
+    })
+}
+
+/// Runs the advisor for every (dataset, tf, swept fields) of the sweep results in `dir` (cycle
+/// model lines) and compares its pick with the fastest configuration there that fits the SRAM.
+/// Only modes the advisor ranks count (lossless leaping with ERT); `none`, bricks, iso and
+/// homogeneous leap values are ignored. A pair whose runs (by the folder's
+/// `experiment.resolved.json`) are not all there yet is left out and listed.
+pub fn validate(
+    dir: &std::path::Path,
+    data_dir: Option<&std::path::Path>,
+    options: &ValidateOptions,
+    mut progress: impl FnMut(&ValidationRow),
+) -> Result<Validation> {
+    use std::collections::BTreeMap;
+    if !dir.is_dir() {
+        return Err(Error::Invalid(format!(
+            "advise --validate {}: no such folder",
+            dir.display()
+        )));
+    }
+    let results = dir.join(crate::experiment::store::RESULTS);
+    if !results.is_file() {
+        return Err(Error::Invalid(format!(
+            "advise --validate {}: no {} (not a sweep's results folder)",
+            dir.display(),
+            crate::experiment::store::RESULTS
+        )));
+    }
+    let resolved: Option<serde_json::Value> =
+        std::fs::read_to_string(dir.join("experiment.resolved.json"))
+            .ok()
+            .and_then(|text| serde_json::from_str(&text).ok());
+    // The experiment's base configuration file, when it named one.
+    let base_config = resolved.as_ref().and_then(|v| {
+        v["experiment"]["config"]
+            .as_str()
+            .map(std::path::PathBuf::from)
+    });
+    // Runs the experiment expands to, per pair.
+    let mut expected: BTreeMap<String, usize> = BTreeMap::new();
+    if let Some(runs) = resolved.as_ref().and_then(|v| v["runs"].as_array()) {
+        for run in runs {
+            let text = |k: &str| run[k].as_str().unwrap_or_default();
+            if text("model") == "cycle" && ranked_mode(text("mode")) {
+                let id = pair_id(text("dataset"), text("tf"), &axes_of(&run["axes"]));
+                *expected.entry(id).or_default() += 1;
+            }
+        }
+    }
+    let mut pairs: BTreeMap<String, Pair> = BTreeMap::new();
+    for (line, _) in crate::experiment::store::read_lines(&results)? {
+        if line["model"].as_str() != Some("cycle") || line.get("time_step").is_some() {
+            continue;
+        }
+        let text = |k: &str| line[k].as_str().unwrap_or_default().to_string();
+        let mode = text("mode");
+        if !ranked_mode(&mode) {
+            continue;
+        }
+        let (Some(fps), Some(w), Some(h)) = (
+            line["fps"].as_f64(),
+            line["width"].as_u64(),
+            line["height"].as_u64(),
+        ) else {
+            continue;
+        };
+        let axes = axes_of(&line["axes"]);
+        let id = pair_id(&text("dataset"), &text("tf"), &axes);
+        let pair = pairs.entry(id).or_insert_with(|| Pair {
+            dataset: text("dataset"),
+            tf: text("tf"),
+            transfer_function: text("transfer_function"),
+            axes,
+            size: (w as u32, h as u32),
+            views: Default::default(),
+            lines: 0,
+            modes: BTreeMap::new(),
+        });
+        pair.lines += 1;
+        let frame = line["frame"].as_u64().unwrap_or(0) as u32;
+        pair.views.insert((frame, text("view")));
+        let fits = line["fits_default_sram"].as_bool().unwrap_or(true);
+        let entry = pair
+            .modes
+            .entry(mode)
+            .or_insert_with(|| (BTreeMap::new(), fits));
+        entry.0.insert(frame, fps);
+    }
+    // A pair whose results are not all there (a sweep still running) is left out: its best
+    // configuration may be among the missing runs.
+    let mut incomplete = Vec::new();
+    pairs.retain(|id, p| match expected.get(id) {
+        Some(&n) if p.lines < n => {
+            incomplete.push(format!("{} {}: {} of {n} runs", p.dataset, p.tf, p.lines));
+            false
+        }
+        _ => true,
+    });
+    // Means over the frames every mode of a pair has (a folder that grew by frames holds more
+    // frames of some modes than of others).
+    for pair in pairs.values_mut() {
+        let common: std::collections::BTreeSet<u32> = pair
+            .views
+            .iter()
+            .map(|(f, _)| *f)
+            .filter(|f| {
+                pair.modes
+                    .values()
+                    .all(|(frames, _)| frames.contains_key(f))
+            })
+            .collect();
+        pair.views.retain(|(f, _)| common.contains(f));
+        for (frames, _) in pair.modes.values_mut() {
+            frames.retain(|f, _| common.contains(f));
+        }
+    }
+    pairs.retain(|_, p| !p.views.is_empty());
+    if pairs.is_empty() && incomplete.is_empty() {
+        return Err(Error::Invalid(format!(
+            "advise --validate {}: no cycle-model results of modes the advisor ranks (ert, \
+             ert+leapN[+hier], ert+distanceN, ert+leapvalues)",
+            dir.display()
+        )));
+    }
+    let mut rows = Vec::new();
+    for pair in pairs.values() {
+        let overrides: Vec<String> = pair
+            .axes
+            .iter()
+            .map(|(k, v)| match v {
+                serde_json::Value::String(s) => format!("{k}=\"{s}\""),
+                other => format!("{k}={other}"),
+            })
+            .collect();
+        let hardware = HardwareConfig::load(base_config.as_deref(), &overrides)?;
+        let views: Vec<String> = pair.views.iter().map(|(_, v)| v.clone()).collect();
+        let step = views.len().div_ceil(options.max_views.max(1));
+        let used: Vec<String> = views.iter().step_by(step.max(1)).cloned().collect();
+        let volume = crate::volume::dataset::load(&pair.dataset, data_dir)?;
+        let base = RunDescription {
+            size: pair.size,
+            ..RunDescription::new(&pair.dataset, &pair.tf, Model::Step, hardware)
+        };
+        let mut structures = vec![Structure::Map];
+        if pair.modes.keys().any(|m| m.contains("distance")) {
+            structures.push(Structure::Distance);
+        }
+        if pair.modes.keys().any(|m| m.contains("leapvalues")) {
+            structures.push(Structure::LeapValues);
+        }
+        // The advice is restricted to the structures asked for; the truth ranks them all.
+        let allowed = options.structures.clone().unwrap_or(structures.clone());
+        let mut advice = advise(
+            &base,
+            &volume,
+            &AdviseOptions {
+                views: used.clone(),
+                sample_size: reduced_size(pair.size, options.max_rays),
+                structures,
+            },
+        )?;
+        for c in &mut advice.ranking {
+            let structure = match c.structure {
+                CandidateStructure::Distance => Structure::Distance,
+                CandidateStructure::LeapValues => Structure::LeapValues,
+                CandidateStructure::Map | CandidateStructure::None => Structure::Map,
+            };
+            c.allowed = allowed.contains(&structure);
+        }
+        let mean = |m: &str| {
+            pair.modes
+                .get(m)
+                .map(|(frames, _)| frames.values().sum::<f64>() / frames.len().max(1) as f64)
+        };
+        // The advisor's pick among what the folder ran (it ranks more than a folder may hold).
+        let advised = advice
+            .ranking
+            .iter()
+            .find(|c| c.fits && c.allowed && pair.modes.contains_key(&c.mode))
+            .ok_or_else(|| {
+                Error::Invalid(format!(
+                    "advise --validate {}: {} with {}: no configuration that fits the SRAM",
+                    dir.display(),
+                    pair.dataset,
+                    pair.tf
+                ))
+            })?;
+        let (best, best_fps) = pair
+            .modes
+            .iter()
+            .filter(|(m, (_, fits))| {
+                *fits && advice.ranking.iter().any(|c| &c.mode == *m && c.fits)
+            })
+            .map(|(m, _)| (m.clone(), mean(m).unwrap_or(0.0)))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap_or_else(|| (advised.mode.clone(), mean(&advised.mode).unwrap_or(0.0)));
+        let advised_fps = mean(&advised.mode).unwrap_or(0.0);
+        let (error_mean, error_max) = fps_errors(
+            &advice,
+            pair.modes
+                .keys()
+                .filter_map(|m| Some((m.as_str(), mean(m)?))),
+        );
+        let row = ValidationRow {
+            dataset: pair.dataset.clone(),
+            tf: pair.tf.clone(),
+            transfer_function: pair.transfer_function.clone(),
+            axes: overrides.join(" "),
+            frames: pair.views.len(),
+            advisor_views: used.len(),
+            size: pair.size,
+            advised: advised.mode.clone(),
+            advised_fps,
+            best,
+            best_fps,
+            loss_percent: 100.0 * (1.0 - advised_fps / best_fps.max(1e-12)),
+            predicted_fps: advised.predicted_fps,
+            ert_fps: mean("ert"),
+            advice_seconds: advice.seconds,
+            advice_cpu_seconds: advice.cpu_seconds,
+            fps_error_mean_percent: error_mean,
+            fps_error_max_percent: error_max,
+        };
+        progress(&row);
+        rows.push(row);
+    }
+    Ok(Validation { rows, incomplete })
+}
+
+/// The ranking as a table, the recommendation and the time the advice took.
+pub fn advice_text(advice: &Advice) -> String {
+    use std::fmt::Write;
+    let mut text = format!(
+        "advice for {} ({}x{}x{}), transfer function {} ({}), {}x{} image, mean over {} views\n\
+         functional model at {}x{} per view; cost model: {:.3} cycles per sample, {} rays, \
+         SRAM {} bits\n\n",
+        advice.dataset,
+        advice.dims[0],
+        advice.dims[1],
+        advice.dims[2],
+        advice.transfer_function,
+        advice.tf,
+        advice.size.0,
+        advice.size.1,
+        advice.views.len(),
+        advice.sample_size.0,
+        advice.sample_size.1,
+        advice.cost_model.cycles_per_sample,
+        advice.cost_model.rays,
+        advice.sram_bits
+    );
+    let _ = writeln!(
+        text,
+        "| rank | configuration | mode | map bits | fits | skippable % | steps (M) | samples (M) | predicted fps | × ERT |"
+    );
+    let _ = writeln!(text, "|---:|---|---|---:|---|---:|---:|---:|---:|---:|");
+    for (i, c) in advice.ranking.iter().enumerate() {
+        let _ = writeln!(
+            text,
+            "| {} | {}{} | {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            i + 1,
+            c.label,
+            if c.mode == advice.recommended {
+                " ◀ recommended"
+            } else {
+                ""
+            },
+            c.mode,
+            c.map_bits
+                .map(|b| b.to_string())
+                .unwrap_or_else(|| "–".into()),
+            if c.fits { "yes" } else { "no" },
+            c.skippable_percent
+                .map(|p| format!("{p:.1}"))
+                .unwrap_or_else(|| "–".into()),
+            c.steps / 1e6,
+            c.samples / 1e6,
+            c.predicted_fps,
+            c.speedup_over_ert
+        );
+    }
+    let r = advice.recommended();
+    let _ = writeln!(
+        text,
+        "\nrecommended: {} (`{}`): {:.2} fps predicted, {:.2}× ERT{}\nadvice took {:.2} s{}",
+        r.label,
+        r.mode,
+        r.predicted_fps,
+        r.speedup_over_ert,
+        match advice.ranking.first() {
+            Some(top) if !top.fits => format!(
+                "; {} would be {:.0} % faster but its map needs {} bits",
+                top.label,
+                100.0 * (top.predicted_fps / r.predicted_fps - 1.0),
+                top.map_bits.unwrap_or(0)
+            ),
+            _ => String::new(),
+        },
+        advice.seconds,
+        advice
+            .cpu_seconds
+            .map(|c| format!(" ({c:.2} s of CPU time)"))
+            .unwrap_or_default()
+    );
+    text
+}
+
+/// The validation table (Markdown) with a summary and the command that made it.
+pub fn validation_markdown(validation: &Validation, command: &str) -> String {
+    use std::fmt::Write;
+    let rows = &validation.rows;
+    let mut text = String::from(
+        "| dataset | tf | frames | image | advised | fps | true best | fps | loss % | fps error mean / max % | advice s (CPU s) |\n\
+         |---|---|---:|---|---|---:|---|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            text,
+            "| {}{} | {} | {} | {}x{} | {} | {:.2} | {} | {:.2} | {:.1} | {:.1} / {:.1} | {:.2} ({}) |",
+            r.dataset,
+            if r.axes.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", r.axes)
+            },
+            r.transfer_function,
+            if r.frames == 0 {
+                format!("table ({} used)", r.advisor_views)
+            } else {
+                format!("{} ({} used)", r.frames, r.advisor_views)
+            },
+            r.size.0,
+            r.size.1,
+            r.advised,
+            r.advised_fps,
+            r.best,
+            r.best_fps,
+            r.loss_percent,
+            r.fps_error_mean_percent,
+            r.fps_error_max_percent,
+            r.advice_seconds,
+            r.advice_cpu_seconds
+                .map(|c| format!("{c:.2}"))
+                .unwrap_or_else(|| "–".into())
+        );
+    }
+    let worst = rows.iter().map(|r| r.loss_percent).fold(0.0f64, f64::max);
+    let exact = rows.iter().filter(|r| r.advised == r.best).count();
+    let within = rows.iter().filter(|r| r.loss_percent <= 5.0).count();
+    let slowest = rows.iter().map(|r| r.advice_seconds).fold(0.0f64, f64::max);
+    let slowest_cpu = rows
+        .iter()
+        .filter_map(|r| r.advice_cpu_seconds)
+        .fold(0.0f64, f64::max);
+    let _ = writeln!(
+        text,
+        "\n{} pairs: the advice is the true best in {exact}, within 5 % in {within}; worst loss \
+         {worst:.1} %; slowest advice {slowest:.2} s wall, {slowest_cpu:.2} s of CPU time. \
+         Predicted frame rates are {:.1} % off the cycle model's on average over the pairs \
+         (per pair the mean over its configurations), {:.1} % at most.",
+        rows.len(),
+        rows.iter().map(|r| r.fps_error_mean_percent).sum::<f64>() / rows.len().max(1) as f64,
+        rows.iter()
+            .map(|r| r.fps_error_max_percent)
+            .fold(0.0f64, f64::max)
+    );
+    if !validation.incomplete.is_empty() {
+        let _ = writeln!(
+            text,
+            "\nLeft out, their runs not all there yet: {}.",
+            validation.incomplete.join("; ")
+        );
+    }
+    let _ = writeln!(text, "\nMade by `{command}`.");
+    text
+}
+
+/// Writes `validation.md`, `validation.csv` and `validation.json` into `dir`.
+pub fn write_validation(
+    dir: &std::path::Path,
+    validation: &Validation,
+    command: &str,
+) -> Result<()> {
+    use std::io::Write;
+    let rows = &validation.rows;
+    crate::output::write_atomically(&dir.join("validation.md"), |f| {
+        f.write_all(validation_markdown(validation, command).as_bytes())
+    })?;
+    crate::output::write_atomically(&dir.join("validation.json"), |f| {
+        f.write_all(
+            serde_json::to_string_pretty(validation)
+                .unwrap_or_default()
+                .as_bytes(),
+        )
+    })?;
+    crate::output::write_atomically(&dir.join("validation.csv"), |f| {
+        writeln!(
+            f,
+            "dataset,tf,transfer_function,axes,frames,advisor_views,width,height,advised,advised_fps,best,best_fps,loss_percent,predicted_fps,ert_fps,advice_seconds,advice_cpu_seconds,fps_error_mean_percent,fps_error_max_percent"
+        )?;
+        for r in rows {
+            writeln!(
+                f,
+                "{},{},{},\"{}\",{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                r.dataset,
+                r.tf,
+                r.transfer_function,
+                r.axes.replace('"', "'"),
+                r.frames,
+                r.advisor_views,
+                r.size.0,
+                r.size.1,
+                r.advised,
+                r.advised_fps,
+                r.best,
+                r.best_fps,
+                r.loss_percent,
+                r.predicted_fps,
+                r.ert_fps.map(|f| f.to_string()).unwrap_or_default(),
+                r.advice_seconds,
+                r.advice_cpu_seconds
+                    .map(|c| c.to_string())
+                    .unwrap_or_default(),
+                r.fps_error_mean_percent,
+                r.fps_error_max_percent
+            )?;
+        }
+        Ok(())
+    })
+}
+
+/// Validates against a table of mean frame rates as `vizsim table` writes it (CSV: `dataset,tf,`
+/// then one column per mode labelled `ERT`, `8³`, `8³+h`; rows labelled `vessel (aneurism)`,
+/// `'0'`), e.g. the protocol's `reports/paper-protocol/tables/cycle-fps.csv`, for which no
+/// results folder is kept. The table does not say its image size, frames or hardware: the
+/// advisor runs with `size`, `views` and `hardware`. Whether a map fits is the advisor's own
+/// test (`map_bits` against `occupancy.sram_bits`).
+pub fn validate_table(
+    path: &std::path::Path,
+    data_dir: Option<&std::path::Path>,
+    hardware: &HardwareConfig,
+    size: (u32, u32),
+    views: &[String],
+    max_rays: u64,
+    mut progress: impl FnMut(&ValidationRow),
+) -> Result<Validation> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let bad = |line: usize, message: String| Error::format(path, format!("line {line}: {message}"));
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines
+        .next()
+        .ok_or_else(|| bad(1, "empty table".into()))?
+        .split(',')
+        .collect();
+    if header.len() < 3 || header[0] != "dataset" || header[1] != "tf" {
+        return Err(bad(1, "expected a header `dataset,tf,MODE...`".into()));
+    }
+    // Column label -> mode: `ERT`, `N³` (leapN), `N³+h` (leapN+hier); others are ignored.
+    let modes: Vec<Option<String>> = header[2..]
+        .iter()
+        .map(|label| {
+            if *label == "ERT" {
+                return Some("ert".to_string());
+            }
+            let (n, hier) = match label.strip_suffix("+h") {
+                Some(n) => (n, true),
+                None => (*label, false),
+            };
+            let n: usize = n.strip_suffix('³')?.parse().ok()?;
+            Some(format!("ert+leap{n}{}", if hier { "+hier" } else { "" }))
+        })
+        .collect();
+    let mut rows = Vec::new();
+    for (i, line) in lines.enumerate() {
+        let number = i + 2;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let cells: Vec<&str> = line.split(',').collect();
+        if cells.len() != header.len() {
+            return Err(bad(
+                number,
+                format!("{} cells, the header has {}", cells.len(), header.len()),
+            ));
+        }
+        // `vessel (aneurism)`, `skull (stand-in: tooth)`: the published name, which the
+        // dataset aliases resolve to the data (or its stand-in).
+        let dataset = cells[0].split(" (").next().unwrap_or(cells[0]).trim();
+        let tf = match cells[1] {
+            "'0'" | "zero" => "zero",
+            "class" => "class",
+            other => {
+                return Err(bad(
+                    number,
+                    format!("transfer function `{other}`: expected '0' or class"),
+                ))
+            }
+        };
+        let volume = crate::volume::dataset::load(dataset, data_dir)?;
+        let base = RunDescription {
+            size,
+            ..RunDescription::new(dataset, tf, Model::Step, hardware.clone())
+        };
+        let advice = advise(
+            &base,
+            &volume,
+            &AdviseOptions {
+                views: views.to_vec(),
+                sample_size: reduced_size(size, max_rays),
+                structures: vec![Structure::Map],
+            },
+        )?;
+        let truth: Vec<(String, f64)> = modes
+            .iter()
+            .zip(&cells[2..])
+            .filter_map(|(m, c)| Some((m.clone()?, c.parse::<f64>().ok()?)))
+            .filter(|(m, _)| advice.ranking.iter().any(|c| &c.mode == m && c.fits))
+            .collect();
+        let fps_of = |m: &str| truth.iter().find(|(t, _)| t == m).map(|(_, f)| *f);
+        let Some(advised) = advice
+            .ranking
+            .iter()
+            .find(|c| c.fits && fps_of(&c.mode).is_some())
+        else {
+            return Err(bad(number, "no configuration that fits the SRAM".into()));
+        };
+        let (best, best_fps) = truth
+            .iter()
+            .cloned()
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .expect("the advised configuration is in the table");
+        let advised_fps = fps_of(&advised.mode).unwrap_or(0.0);
+        let (error_mean, error_max) = fps_errors(
+            &advice,
+            modes
+                .iter()
+                .zip(&cells[2..])
+                .filter_map(|(m, c)| Some((m.as_deref()?, c.parse::<f64>().ok()?))),
+        );
+        let row = ValidationRow {
+            dataset: dataset.to_string(),
+            tf: tf.to_string(),
+            transfer_function: advice.transfer_function.clone(),
+            axes: String::new(),
+            frames: 0,
+            advisor_views: views.len(),
+            size,
+            advised: advised.mode.clone(),
+            advised_fps,
+            best,
+            best_fps,
+            loss_percent: 100.0 * (1.0 - advised_fps / best_fps.max(1e-12)),
+            predicted_fps: advised.predicted_fps,
+            ert_fps: fps_of("ert"),
+            advice_seconds: advice.seconds,
+            advice_cpu_seconds: advice.cpu_seconds,
+            fps_error_mean_percent: error_mean,
+            fps_error_max_percent: error_max,
+        };
+        progress(&row);
+        rows.push(row);
+    }
+    Ok(Validation {
+        rows,
+        incomplete: Vec::new(),
+    })
+}

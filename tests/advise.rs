@@ -1,0 +1,295 @@
+//! `vizsim advise`: deterministic, never recommends a map that does not fit the SRAM, predicts
+//! the functional model's exact steps when it runs on the full image, and clear errors.
+
+use std::process::Command;
+
+use vizsim::advise::{self, AdviseOptions, Structure};
+use vizsim::config::HardwareConfig;
+use vizsim::run::{self, Model, RunDescription};
+use vizsim::volume::dataset;
+
+fn base(dataset: &str, tf: &str, size: (u32, u32), sram_bits: Option<u64>) -> RunDescription {
+    let mut hardware = HardwareConfig::load(None, &[]).unwrap();
+    if let Some(bits) = sram_bits {
+        hardware.occupancy.sram_bits = bits;
+    }
+    RunDescription {
+        size,
+        ..RunDescription::new(dataset, tf, Model::Step, hardware)
+    }
+}
+
+fn options(views: u32, sample: (u32, u32), structures: Vec<Structure>) -> AdviseOptions {
+    AdviseOptions {
+        views: advise::orbit_views(views, 3),
+        sample_size: sample,
+        structures,
+    }
+}
+
+#[test]
+fn advice_is_deterministic() {
+    let volume = dataset::load("phantom:metaballs:32", None).unwrap();
+    let run = base("phantom:metaballs:32", "class", (48, 48), None);
+    let opts = options(2, (24, 24), vec![Structure::Map, Structure::Distance]);
+    let strip = |a: &advise::Advice| {
+        let mut v = serde_json::to_value(a).unwrap();
+        // Wall and CPU time are the only fields allowed to differ.
+        v.as_object_mut().unwrap().remove("seconds");
+        v.as_object_mut().unwrap().remove("cpu_seconds");
+        v
+    };
+    let first = advise::advise(&run, &volume, &opts).unwrap();
+    let second = advise::advise(&run, &volume, &opts).unwrap();
+    assert_eq!(strip(&first), strip(&second));
+    // Map sizes 2..32 (with and without the hierarchy), ERT, two distance volumes.
+    assert_eq!(first.ranking.len(), 1 + 5 + 5 + 2);
+    // Ranked by predicted frame rate, fastest first.
+    for pair in first.ranking.windows(2) {
+        assert!(pair[0].predicted_fps >= pair[1].predicted_fps);
+    }
+}
+
+#[test]
+fn never_recommends_a_map_that_does_not_fit() {
+    let volume = dataset::load("phantom:sphere:64", None).unwrap();
+    // 512 bits: 8³ (512 bits) fits, 4³ (4096) and 2³ (32768) do not.
+    let run = base("phantom:sphere:64", "class", (32, 32), Some(512));
+    let advice =
+        advise::advise(&run, &volume, &options(2, (32, 32), vec![Structure::Map])).unwrap();
+    let rec = advice.recommended();
+    assert!(rec.fits);
+    assert!(rec.map_bits.is_none_or(|b| b <= 512), "{rec:?}");
+    // The check has teeth: some faster-predicted candidate does not fit.
+    let top = &advice.ranking[0];
+    assert!(
+        !top.fits,
+        "expected a small map to be predicted fastest: {top:?}"
+    );
+    assert_ne!(top.mode, rec.mode);
+    for c in &advice.ranking {
+        assert_eq!(c.fits, c.map_bits.is_none_or(|b| b <= 512), "{c:?}");
+    }
+}
+
+#[test]
+fn full_image_steps_equal_the_functional_model() {
+    let spec = "phantom:metaballs:32";
+    let volume = dataset::load(spec, None).unwrap();
+    let size = (40, 40);
+    let run = base(spec, "class", size, None);
+    let opts = options(2, size, vec![Structure::Map, Structure::Distance]);
+    let advice = advise::advise(&run, &volume, &opts).unwrap();
+    for mode in ["ert", "ert+leap4", "ert+leap8+hier", "ert+distance8"] {
+        let candidate = advice.ranking.iter().find(|c| c.mode == mode).unwrap();
+        let m = vizsim::experiment::spec::Mode::parse(mode).unwrap();
+        let described = RunDescription {
+            hardware: advise::apply_mode(&run.hardware, &m, "class"),
+            ..run.clone()
+        };
+        let prepared = run::prepare(&described, &volume).unwrap();
+        let (mut steps, mut samples) = (0u64, 0u64);
+        for view in &opts.views {
+            let r = RunDescription {
+                view: view.clone(),
+                ..described.clone()
+            };
+            let report = run::execute(&r, &prepared, run::Probes::default()).unwrap();
+            steps += report.measurements.steps;
+            samples += report.measurements.samples;
+        }
+        let n = opts.views.len() as f64;
+        assert_eq!(candidate.steps, steps as f64 / n, "{mode}");
+        assert_eq!(candidate.samples, samples as f64 / n, "{mode}");
+    }
+    // Leaping cuts steps on this phantom, so the comparison above is not between zeros.
+    let ert = advice.ranking.iter().find(|c| c.mode == "ert").unwrap();
+    let leap = advice
+        .ranking
+        .iter()
+        .find(|c| c.mode == "ert+leap4")
+        .unwrap();
+    assert!(leap.steps < ert.steps);
+}
+
+#[test]
+fn bad_input_gives_a_clear_error() {
+    let volume = dataset::load("phantom:sphere:32", None).unwrap();
+    let run = base("phantom:sphere:32", "no-such-tf", (32, 32), None);
+    let err = advise::advise(&run, &volume, &options(1, (16, 16), vec![Structure::Map]))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("no-such-tf"), "{err}");
+
+    let run = base("phantom:sphere:32", "class", (32, 32), None);
+    let err = advise::advise(&run, &volume, &options(1, (64, 64), vec![Structure::Map]))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("64x64"), "{err}");
+
+    let missing = std::path::Path::new("/nonexistent/advise-results");
+    let err = advise::validate(
+        missing,
+        None,
+        &advise::ValidateOptions {
+            max_rays: 256,
+            max_views: 1,
+            structures: None,
+        },
+        |_| {},
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("/nonexistent/advise-results") && err.contains("no such folder"),
+        "{err}"
+    );
+
+    // The command line names the option.
+    let exe = env!("CARGO_BIN_EXE_vizsim");
+    let out = Command::new(exe)
+        .args([
+            "advise",
+            "--dataset",
+            "no-such-dataset",
+            "--data-dir",
+            "tests",
+        ])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("no-such-dataset"), "{stderr}");
+
+    let out = Command::new(exe)
+        .args([
+            "advise",
+            "--dataset",
+            "phantom:sphere:32",
+            "--tf",
+            "nope.toml",
+        ])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("nope.toml") && stderr.contains("--tf"),
+        "{stderr}"
+    );
+
+    let out = Command::new(exe)
+        .args(["advise", "--validate", "/nonexistent/advise-results"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("--validate") && stderr.contains("no such folder"),
+        "{stderr}"
+    );
+
+    let out = Command::new(exe)
+        .args([
+            "advise",
+            "--dataset",
+            "phantom:sphere:32",
+            "--structures",
+            "octree",
+        ])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("--structures") && stderr.contains("octree"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn cli_prints_the_ranking_and_json() {
+    let exe = env!("CARGO_BIN_EXE_vizsim");
+    let out = Command::new(exe)
+        .args([
+            "advise",
+            "--dataset",
+            "phantom:sphere:32",
+            "--size",
+            "32x32",
+            "--views",
+            "1",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let rec = v["recommended"].as_str().unwrap();
+    assert!(v["ranking"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|c| c["mode"] == rec && c["fits"] == true));
+    assert!(v["seconds"].as_f64().unwrap() >= 0.0);
+}
+
+#[test]
+fn a_table_is_validated_against_its_own_frame_rates() {
+    // Frame rates made up so that the truth is known: 8³ + hierarchy is the best that fits.
+    let dir = std::env::temp_dir().join(format!("vizsim-advise-table-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let table = dir.join("cycle-fps.csv");
+    std::fs::write(
+        &table,
+        "dataset,tf,none,ERT,8³,8³+h,16³\nphantom:sphere:32,class,1.0,10.0,5.0,20.0,2.0\n",
+    )
+    .unwrap();
+    let hardware = HardwareConfig::load(None, &[]).unwrap();
+    let v = advise::validate_table(
+        &table,
+        None,
+        &hardware,
+        (32, 32),
+        &advise::orbit_views(1, 0),
+        256,
+        |_| {},
+    )
+    .unwrap();
+    assert_eq!(v.rows.len(), 1);
+    let row = &v.rows[0];
+    assert_eq!((row.best.as_str(), row.best_fps), ("ert+leap8+hier", 20.0));
+    let fps = [
+        ("ert", 10.0),
+        ("ert+leap8", 5.0),
+        ("ert+leap8+hier", 20.0),
+        ("ert+leap16", 2.0),
+    ];
+    let advised = fps.iter().find(|(m, _)| *m == row.advised).unwrap().1;
+    assert_eq!(row.advised_fps, advised);
+    assert!((row.loss_percent - 100.0 * (1.0 - advised / 20.0)).abs() < 1e-9);
+    assert_eq!(row.ert_fps, Some(10.0));
+
+    // A malformed row names the file and the line.
+    std::fs::write(&table, "dataset,tf,ERT\nphantom:sphere:32,grey,1.0\n").unwrap();
+    let err = advise::validate_table(
+        &table,
+        None,
+        &hardware,
+        (32, 32),
+        &advise::orbit_views(1, 0),
+        256,
+        |_| {},
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("cycle-fps.csv") && err.contains("line 2") && err.contains("grey"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
