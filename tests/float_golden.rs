@@ -9,8 +9,9 @@
 mod common;
 
 use vizsim::camera::{Camera, Projection, View};
-use vizsim::config::HardwareConfig;
-use vizsim::render::float::FloatRenderer;
+use vizsim::config::{HardwareConfig, LeapRegions, LeapStructure};
+use vizsim::leapvalues::LeapValueVolume;
+use vizsim::render::float::{FloatRenderer, PACKET_WIDTHS};
 use vizsim::render::{Frame, RenderSettings};
 use vizsim::run::{execute, prepare, Model, Probes, RunDescription};
 use vizsim::transfer;
@@ -235,9 +236,14 @@ const GOLDEN: &[(&str, u64)] = &[
     ("aneurism bricks", 0x07a63a0868ebaeb0),
 ];
 
-fn render_case(volume: &Volume, c: &Case) -> Frame {
+fn hardware(c: &Case) -> HardwareConfig {
     let sets: Vec<String> = c.sets.iter().map(|s| s.to_string()).collect();
-    let hardware = HardwareConfig::load(None, &sets).unwrap_or_else(|e| panic!("{}: {e}", c.name));
+    HardwareConfig::load(None, &sets).unwrap_or_else(|e| panic!("{}: {e}", c.name))
+}
+
+/// The case through the one run path (`run::prepare`, `run::execute`).
+fn render_case(volume: &Volume, c: &Case) -> Frame {
+    let hardware = hardware(c);
     let mut run = RunDescription::new(c.dataset, c.tf, Model::Float, hardware);
     run.view = c.view.into();
     run.projection = c.projection;
@@ -250,9 +256,51 @@ fn render_case(volume: &Volume, c: &Case) -> Frame {
         .frame
 }
 
+/// The case's renderer built as `run::prepare` builds it, with packets of `width` rays, and
+/// its camera.
+fn renderer<'v>(volume: &'v Volume, c: &Case, width: usize) -> (FloatRenderer<'v>, Camera) {
+    let hw = hardware(c);
+    let settings = RenderSettings {
+        sample_spacing: c.spacing,
+        ert_threshold: hw.ert_threshold(),
+        shading: c.shading,
+        interleave: hw.ray.interleave,
+        ..RenderSettings::default()
+    };
+    let tf = transfer::resolve(c.tf, &volume.name).unwrap();
+    let mut renderer = FloatRenderer::new(volume, &tf, &settings).unwrap();
+    if hw.occupancy.structure == LeapStructure::LeapValues
+        && hw.leap_values.regions == LeapRegions::Homogeneous
+    {
+        let words = LeapValueVolume::build(
+            volume,
+            &hw.leap_values,
+            &hw.volume_word,
+            c.spacing,
+            |_, _| true,
+        )
+        .unwrap();
+        renderer = renderer.with_leap_values(words);
+    }
+    let renderer = renderer
+        .with_iso(&hw)
+        .and_then(|r| r.with_ray_range(&hw))
+        .and_then(|r| r.with_packet_width(width))
+        .unwrap_or_else(|e| panic!("{}: {e}", c.name));
+    let camera = Camera::for_volume(
+        glam::Vec3::from(volume.extent()),
+        View::parse(c.view).unwrap(),
+        c.projection,
+        c.size,
+        c.size,
+    )
+    .unwrap();
+    (renderer, camera)
+}
+
 /// A 16-bit, anisotropic volume (the metaballs scaled to 16 bits, z spacing 1.5), rendered
 /// through `FloatRenderer` directly.
-fn sixteen_bit_frame() -> Frame {
+fn sixteen_bit_frame(width: usize) -> Frame {
     let eight = dataset::load("phantom:metaballs:40", None).unwrap();
     let data = eight.data.iter().map(|&v| v * 257 + (v & 7)).collect();
     let volume = Volume::new("metaballs16", eight.dims, [1.0, 1.0, 1.5], 16, data).unwrap();
@@ -261,7 +309,9 @@ fn sixteen_bit_frame() -> Frame {
         shading: true,
         ..Default::default()
     };
-    let renderer = FloatRenderer::new(&volume, &tf, &settings).unwrap();
+    let renderer = FloatRenderer::new(&volume, &tf, &settings)
+        .and_then(|r| r.with_packet_width(width))
+        .unwrap();
     let camera = Camera::for_volume(
         glam::Vec3::from(volume.extent()),
         View::Orbit { k: 3, n: 20 },
@@ -279,7 +329,7 @@ fn all_frames() -> Vec<(String, Frame)> {
         let volume = dataset::load(c.dataset, None).unwrap();
         frames.push((c.name.to_string(), render_case(&volume, &c)));
     }
-    frames.push(("metaballs 16-bit".into(), sixteen_bit_frame()));
+    frames.push(("metaballs 16-bit".into(), sixteen_bit_frame(1)));
     if let Some(dir) = common::data_dir() {
         let volume = dataset::load("aneurism", Some(&dir)).unwrap();
         for c in aneurism_cases() {
@@ -299,13 +349,9 @@ fn float_reference_matches_the_golden_hashes() {
         return;
     }
     for (name, frame) in &frames {
-        let (_, want) = GOLDEN
-            .iter()
-            .find(|(n, _)| n == name)
-            .unwrap_or_else(|| panic!("{name}: no golden hash"));
         assert_eq!(
             frame_hash(frame),
-            *want,
+            golden(name),
             "{name}: the image or a record changed"
         );
         // Each case exercises what it is named after.
@@ -330,4 +376,68 @@ fn float_reference_matches_the_golden_hashes() {
             assert!(any(|r| r.terminated_early), "{name}: ERT");
         }
     }
+}
+
+fn golden(name: &str) -> u64 {
+    GOLDEN
+        .iter()
+        .find(|(n, _)| *n == name)
+        .unwrap_or_else(|| panic!("{name}: no golden hash"))
+        .1
+}
+
+/// Every packet width on 1 and 2 threads renders the golden image (the run path above takes
+/// the default width).
+#[test]
+fn every_packet_width_and_thread_count_renders_the_same_image() {
+    let mut cases = phantom_cases();
+    let aneurism = common::data_dir().map(|dir| dataset::load("aneurism", Some(&dir)).unwrap());
+    if aneurism.is_some() {
+        cases.extend(aneurism_cases().into_iter().take(1));
+    }
+    for width in PACKET_WIDTHS {
+        assert_eq!(
+            frame_hash(&sixteen_bit_frame(width)),
+            golden("metaballs 16-bit"),
+            "16-bit: packet width {width}"
+        );
+    }
+    for c in cases {
+        let phantom;
+        let volume = match &aneurism {
+            Some(v) if c.dataset == "aneurism" => v,
+            _ => {
+                phantom = dataset::load(c.dataset, None).unwrap();
+                &phantom
+            }
+        };
+        for width in PACKET_WIDTHS {
+            let (renderer, camera) = renderer(volume, &c, width);
+            for threads in [1, 2] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                let frame = pool.install(|| renderer.render(&camera));
+                assert_eq!(
+                    frame_hash(&frame),
+                    golden(c.name),
+                    "{}: packet width {width}, {threads} threads",
+                    c.name
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn packet_widths_outside_the_list_are_refused() {
+    let volume = dataset::load("phantom:sphere:8", None).unwrap();
+    let tf = transfer::resolve("class", &volume.name).unwrap();
+    let renderer = FloatRenderer::new(&volume, &tf, &RenderSettings::default()).unwrap();
+    let err = renderer
+        .with_packet_width(3)
+        .err()
+        .expect("width 3 refused");
+    assert!(err.to_string().contains("packet width 3"), "{err}");
 }
