@@ -54,7 +54,7 @@ pub struct FloatRenderer<'a> {
 pub const PACKET_WIDTHS: [usize; 3] = [1, 4, 8];
 
 /// The packet width `render` uses unless told otherwise.
-pub const DEFAULT_PACKET_WIDTH: usize = 8;
+pub const DEFAULT_PACKET_WIDTH: usize = 4;
 
 impl<'a> FloatRenderer<'a> {
     pub fn new(
@@ -501,6 +501,11 @@ impl<'a> FloatRenderer<'a> {
     }
 }
 
+#[inline(always)]
+fn lerp(a: f32, b: f32, t: f32) -> f32 {
+    a + t * (b - a)
+}
+
 /// One ray of a packet.
 #[derive(Clone, Copy)]
 struct Lane {
@@ -586,14 +591,16 @@ fn composite(acc: &mut Vec4, a: f32, rgba: Vec4) {
 }
 
 /// The volume's lattice: per axis the largest coordinate, the largest lower corner of a cell
-/// (dim - 2, so that its +1 neighbour exists) and the stride; the 8 corners' offsets from the
-/// lower corner (x fastest: corner c = x + 2y + 4z).
+/// (dim - 2, so that its +1 neighbour exists) and the stride; the offsets of a cell's four
+/// x-pairs of voxels from its lower corner (rows y, y + 1 at z, then at z + 1) and the span of
+/// voxels a cell covers.
 #[derive(Clone, Copy, Debug)]
 struct Grid {
     hi: [f32; 3],
     top: [i32; 3],
     stride: [usize; 3],
-    corners: [usize; 8],
+    rows: [usize; 4],
+    span: usize,
 }
 
 impl Grid {
@@ -604,9 +611,8 @@ impl Grid {
             hi: dims.map(|d| (d - 1) as f32),
             top: dims.map(|d| (d - 2) as i32),
             stride,
-            corners: std::array::from_fn(|c| {
-                (c & 1) * stride[0] + ((c >> 1) & 1) * stride[1] + (c >> 2) * stride[2]
-            }),
+            rows: [0, stride[1], stride[2], stride[2] + stride[1]],
+            span: stride[2] + stride[1] + 2,
         }
     }
 
@@ -629,26 +635,18 @@ impl Grid {
     #[inline(always)]
     fn interpolate<const N: usize>(&self, data: &[u16], p: &[[f32; N]; 3]) -> [f32; N] {
         let (base, [fx, fy, fz]) = self.cell(p);
-        // Gathered as integers, converted a whole corner (all lanes) at a time.
-        let mut gathered = [[0i32; N]; 8];
-        for l in 0..N {
+        // Lane by lane: each cell's four x-pairs are adjacent voxels, which the compiler loads
+        // and interpolates as vectors within the lane.
+        std::array::from_fn(|l| {
             let i0 = base[0][l] as usize
                 + base[1][l] as usize * self.stride[1]
                 + base[2][l] as usize * self.stride[2];
-            let cube = &data[i0..=i0 + self.corners[7]];
-            for (corner, &offset) in self.corners.iter().enumerate() {
-                gathered[corner][l] = cube[offset] as i32;
-            }
-        }
-        let c = gathered.map(|corner| corner.map(|v| v as f32));
-        let lerp = |a: [f32; N], b: [f32; N], t: [f32; N]| -> [f32; N] {
-            std::array::from_fn(|l| a[l] + t[l] * (b[l] - a[l]))
-        };
-        let c00 = lerp(c[0], c[1], fx);
-        let c10 = lerp(c[2], c[3], fx);
-        let c01 = lerp(c[4], c[5], fx);
-        let c11 = lerp(c[6], c[7], fx);
-        lerp(lerp(c00, c10, fy), lerp(c01, c11, fy), fz)
+            let cube = &data[i0..i0 + self.span];
+            let [c00, c10, c01, c11] = self
+                .rows
+                .map(|r| lerp(cube[r] as f32, cube[r + 1] as f32, fx[l]));
+            lerp(lerp(c00, c10, fy[l]), lerp(c01, c11, fy[l]), fz[l])
+        })
     }
 }
 
