@@ -3,6 +3,7 @@
 //! `float_256`: the float reference on a 256^3 volume (aneurism when the data folder is there,
 //! else the 256^3 sphere phantom), 256x256, one sample per voxel distance, no ERT, one thread
 //! (the per-core figure). divan reports samples per second as its item throughput.
+//! `float_256_packet`: the same frame with each packet width of the float reference.
 
 use std::sync::OnceLock;
 
@@ -29,13 +30,25 @@ fn volume_256() -> &'static Volume {
 
 #[divan::bench(sample_count = 5)]
 fn float_256(bencher: divan::Bencher) {
+    bench_float(bencher, vizsim::render::float::DEFAULT_PACKET_WIDTH);
+}
+
+/// The same frame with each packet width (rays marched together); the image is the same.
+#[divan::bench(sample_count = 5, args = vizsim::render::float::PACKET_WIDTHS)]
+fn float_256_packet(bencher: divan::Bencher, width: usize) {
+    bench_float(bencher, width);
+}
+
+fn bench_float(bencher: divan::Bencher, width: usize) {
     let volume = volume_256();
     let tf = transfer::resolve("class", &volume.name).unwrap();
     let settings = RenderSettings {
         ert_threshold: None,
         ..Default::default()
     };
-    let renderer = FloatRenderer::new(volume, &tf, &settings).unwrap();
+    let renderer = FloatRenderer::new(volume, &tf, &settings)
+        .and_then(|r| r.with_packet_width(width))
+        .unwrap();
     let camera = Camera::for_volume(
         glam::Vec3::from(volume.extent()),
         View::Orbit { k: 5, n: 72 },
@@ -50,7 +63,7 @@ fn float_256(bencher: divan::Bencher) {
         .unwrap();
     let samples = pool.install(|| renderer.render(&camera)).stats().samples;
     println!(
-        "float_256: {} on 1 thread, {samples} samples per frame",
+        "float_256 (packets of {width}): {} on 1 thread, {samples} samples per frame",
         volume.name
     );
     bencher

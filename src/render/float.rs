@@ -8,13 +8,15 @@
 //! Finally the background is composited behind: `out = C + (1-A)·bg`.
 //!
 //! Each pixel is computed independently, so the image is bit-identical whatever the number of
-//! rayon threads.
+//! rayon threads. Rays of neighbouring pixels are marched in packets (`PACKET_WIDTHS`): one ray
+//! per lane, every lane performing the scalar code's f32 operations in the same order, so the
+//! image is also bit-identical whatever the packet width.
 
 use std::borrow::Cow;
 
 use glam::{Vec3A, Vec4};
 
-use super::{clip_to_box, render_frame, sample_range, Frame, RayRecord, RenderSettings};
+use super::{clip_to_box, render_rows, sample_range, Frame, RayRecord, RenderSettings};
 use crate::bricks::FloatRange;
 use crate::camera::interleave_ray;
 use crate::camera::{Camera, Ray};
@@ -42,7 +44,17 @@ pub struct FloatRenderer<'a> {
     leap_values: Option<LeapValueVolume>,
     /// Iso-surface mode (`[iso]`): first hit, f32 bisection, shaded surface.
     iso: Option<IsoSurface>,
+    /// The volume's lattice, prepared once: what every sample's cell lookup needs.
+    grid: Grid,
+    /// Rays marched together (one of `PACKET_WIDTHS`).
+    packet: usize,
 }
+
+/// Packet widths `with_packet_width` accepts; the image is the same for each.
+pub const PACKET_WIDTHS: [usize; 3] = [1, 4, 8];
+
+/// The packet width `render` uses unless told otherwise.
+pub const DEFAULT_PACKET_WIDTH: usize = 4;
 
 impl<'a> FloatRenderer<'a> {
     pub fn new(
@@ -65,6 +77,8 @@ impl<'a> FloatRenderer<'a> {
             ray_range: None,
             leap_values: None,
             iso: None,
+            grid: Grid::new(volume.dims),
+            packet: DEFAULT_PACKET_WIDTH,
         })
     }
 
@@ -101,10 +115,22 @@ impl<'a> FloatRenderer<'a> {
         if leap_values.regions == LeapRegions::Homogeneous {
             if let Some(densities) = leap_values.densities.clone() {
                 self.volume = Cow::Owned(densities);
+                self.grid = Grid::new(self.volume.dims);
             }
             self.leap_values = Some(leap_values);
         }
         self
+    }
+
+    /// Marches `width` rays together (one of `PACKET_WIDTHS`); the image does not change.
+    pub fn with_packet_width(mut self, width: usize) -> Result<Self> {
+        if !PACKET_WIDTHS.contains(&width) {
+            return Err(crate::error::Error::Invalid(format!(
+                "packet width {width}: allowed {PACKET_WIDTHS:?}"
+            )));
+        }
+        self.packet = width;
+        Ok(self)
     }
 
     /// Homogeneous leap values: what preprocessing found.
@@ -113,10 +139,33 @@ impl<'a> FloatRenderer<'a> {
     }
 
     pub fn render(&self, camera: &Camera) -> Frame {
-        render_frame(camera.width, camera.height, |px, py| {
-            let ray = camera.voxel_ray(px, py, self.volume.spacing);
-            let ray = interleave_ray(ray, px, py, &self.settings);
-            self.cast_pixel(&ray, (px, py))
+        match self.packet {
+            8 => self.render_packets::<8>(camera),
+            4 => self.render_packets::<4>(camera),
+            _ => self.render_packets::<1>(camera),
+        }
+    }
+
+    /// Each row in packets of N neighbouring pixels (the last one padded with idle lanes).
+    fn render_packets<const N: usize>(&self, camera: &Camera) -> Frame {
+        render_rows(camera.width, camera.height, |py, pixels, records| {
+            for (chunk, (pixels, records)) in
+                pixels.chunks_mut(N).zip(records.chunks_mut(N)).enumerate()
+            {
+                let mut lanes: [Lane; N] = std::array::from_fn(|l| {
+                    let px = (chunk * N + l) as u32;
+                    if l < pixels.len() {
+                        let ray = camera.voxel_ray(px, py, self.volume.spacing);
+                        self.begin(interleave_ray(ray, px, py, &self.settings), (px, py))
+                    } else {
+                        Lane::idle()
+                    }
+                });
+                self.march(&mut lanes);
+                for ((pixel, record), lane) in pixels.iter_mut().zip(records).zip(&lanes) {
+                    (*pixel, *record) = self.finish(lane);
+                }
+            }
         })
     }
 
@@ -127,71 +176,102 @@ impl<'a> FloatRenderer<'a> {
 
     /// Casts the ray of pixel (px, py) (the pixel matters only for a depth image).
     pub fn cast_pixel(&self, ray: &Ray, pixel: (u32, u32)) -> ([u8; 4], RayRecord) {
-        let mut record = RayRecord::default();
-        // Accumulated (R, G, B, A): a sample of colour c and opacity a adds (1 - A)·a·(c, 1).
-        let mut acc = Vec4::ZERO;
-        let mut surface = None;
-        if let Some((t_enter, t_exit)) = clip_to_box(ray, self.volume.dims) {
-            let s = self.settings.sample_spacing;
-            let (mut first, mut end) = sample_range(t_enter, t_exit, s);
-            // Iso refinement reaches back to first - 1 when only bricks cut it.
-            let mut refine_from = first;
-            if let Some(range) = &self.ray_range {
-                // The same positions as the loop below computes.
-                let l = range.limits(ray, pixel, s, first, end, |k| {
-                    ray.origin + ray.dir * (k as f32 * s)
-                });
-                record.positions_cut = ((end - first) - (l.end - l.first)) as u32;
-                (first, end, surface) = (l.first, l.end, l.surface);
-                refine_from = l.scene_first;
-            }
-            record.t_enter = t_enter;
-            record.t_exit = t_exit;
-            record.first_sample = first;
-            record.end_sample = end;
-            record.hit = end > first;
-            let threshold = self.settings.ert_threshold.unwrap_or(f32::INFINITY);
-            if let Some(iso) = &self.iso {
-                self.march_iso(ray, iso, (first, refine_from), end, &mut acc, &mut record);
-                return self.finish(acc, record, ray, pixel, surface);
-            }
-            if let Some(words) = &self.leap_values {
-                self.march_regions(ray, words, first, end, &mut acc, &mut record);
-                return self.finish(acc, record, ray, pixel, surface);
-            }
-            for k in first..end {
-                let p = ray.origin + ray.dir * (k as f32 * s);
-                let rgba = self.classify(p, ray.dir);
-                record.samples += 1;
-                let a = if s == 1.0 {
-                    rgba.w
+        let mut lanes = [self.begin(*ray, pixel)];
+        self.march(&mut lanes);
+        self.finish(&lanes[0])
+    }
+
+    /// Sets a ray up: its samples in the box, cut to its start and end (bricks, clipping,
+    /// geometry). Iso mode and homogeneous leap values march the whole ray here (their own
+    /// protocols); otherwise the lane's samples `first..end` are left to `march`.
+    fn begin(&self, ray: Ray, pixel: (u32, u32)) -> Lane {
+        let mut lane = Lane {
+            ray,
+            pixel,
+            first: 0,
+            end: 0,
+            acc: Vec4::ZERO,
+            record: RayRecord::default(),
+            surface: None,
+        };
+        let Some((t_enter, t_exit)) = clip_to_box(&ray, self.volume.dims) else {
+            return lane;
+        };
+        let record = &mut lane.record;
+        let s = self.settings.sample_spacing;
+        let (mut first, mut end) = sample_range(t_enter, t_exit, s);
+        // Iso refinement reaches back to first - 1 when only bricks cut it.
+        let mut refine_from = first;
+        if let Some(range) = &self.ray_range {
+            // The same positions as `march` computes.
+            let l = range.limits(&ray, pixel, s, first, end, |k| position(&ray, k, s));
+            record.positions_cut = ((end - first) - (l.end - l.first)) as u32;
+            (first, end, lane.surface) = (l.first, l.end, l.surface);
+            refine_from = l.scene_first;
+        }
+        record.t_enter = t_enter;
+        record.t_exit = t_exit;
+        record.first_sample = first;
+        record.end_sample = end;
+        record.hit = end > first;
+        if let Some(iso) = &self.iso {
+            self.march_iso(&ray, iso, (first, refine_from), end, &mut lane.acc, record);
+        } else if let Some(words) = &self.leap_values {
+            self.march_regions(&ray, words, first, end, &mut lane.acc, record);
+        } else {
+            (lane.first, lane.end) = (first, end);
+        }
+        lane
+    }
+
+    /// Samples each lane's `first..end` (until early ray termination), the lanes in step: one
+    /// sample of every lane per iteration. Lanes that are done compute a position in the box
+    /// and discard it, so the loop has no per-lane control flow before classification.
+    fn march<const N: usize>(&self, lanes: &mut [Lane; N]) {
+        let s = self.settings.sample_spacing;
+        let threshold = self.settings.ert_threshold.unwrap_or(f32::INFINITY);
+        let mut k: [i64; N] = std::array::from_fn(|l| lanes[l].first);
+        let mut end: [i64; N] = std::array::from_fn(|l| lanes[l].end);
+        let o: [[f32; N]; 3] =
+            std::array::from_fn(|a| std::array::from_fn(|l| lanes[l].ray.origin[a]));
+        let d: [[f32; N]; 3] =
+            std::array::from_fn(|a| std::array::from_fn(|l| lanes[l].ray.dir[a]));
+        while (0..N).any(|l| k[l] < end[l]) {
+            let p = positions(&o, &d, std::array::from_fn(|l| k[l].min(end[l])), s);
+            let (entry, f) = table_position(self.grid.interpolate(&self.volume.data, &p));
+            for (l, lane) in lanes.iter_mut().enumerate() {
+                if k[l] >= end[l] {
+                    continue;
+                }
+                let q = Vec3A::new(p[0][l], p[1][l], p[2][l]);
+                let rgba = self.classify_entry(entry[l], f[l], q, lane.ray.dir);
+                lane.record.samples += 1;
+                composite(&mut lane.acc, self.opacity(rgba.w), rgba);
+                if lane.acc.w >= threshold {
+                    lane.record.terminated_early = k[l] + 1 < end[l];
+                    end[l] = k[l];
                 } else {
-                    correct_opacity(rgba.w, s)
-                };
-                acc += (1.0 - acc.w) * a * rgba.truncate().extend(1.0);
-                if acc.w >= threshold {
-                    record.terminated_early = k + 1 < end;
-                    break;
+                    k[l] += 1;
                 }
             }
         }
-        self.finish(acc, record, ray, pixel, surface)
     }
 
     /// The pixel: the opaque surface (geometry) or the background composited behind the
     /// accumulated colour.
-    fn finish(
-        &self,
-        acc: Vec4,
-        record: RayRecord,
-        ray: &Ray,
-        pixel: (u32, u32),
-        mut surface: Option<[f32; 4]>,
-    ) -> ([u8; 4], RayRecord) {
+    fn finish(&self, lane: &Lane) -> ([u8; 4], RayRecord) {
+        let Lane {
+            ray,
+            pixel,
+            acc,
+            record,
+            mut surface,
+            ..
+        } = *lane;
         if let (None, Some(scene)) = (surface, self.ray_range.as_ref().and_then(|r| r.scene())) {
             // A ray that misses the volume (or has no sample in it) still meets the geometry.
             surface = scene
-                .limits(ray, pixel.0, pixel.1, self.settings.sample_spacing)
+                .limits(&ray, pixel.0, pixel.1, self.settings.sample_spacing)
                 .surface;
         }
         let bg = Vec4::from_array(surface.unwrap_or(self.settings.background));
@@ -290,7 +370,7 @@ impl<'a> FloatRenderer<'a> {
         let mut region: Option<u16> = None;
         let mut k = first;
         while k < end {
-            let p = ray.origin + ray.dir * (k as f32 * s);
+            let p = position(ray, k, s);
             let nearest = [0, 1, 2].map(|a| {
                 let x = p[a].clamp(0.0, (d[a] - 1) as f32);
                 ((x + 0.5).floor() as usize).min(d[a] - 1)
@@ -332,17 +412,13 @@ impl<'a> FloatRenderer<'a> {
             let steps = (steps as i64).min(end - k);
             record.samples += 1;
             record.skipped += steps as u32 - 1;
-            let a = if s == 1.0 {
-                rgba.w
-            } else {
-                correct_opacity(rgba.w, s)
-            };
+            let a = self.opacity(rgba.w);
             let a = if steps > 1 {
                 1.0 - (1.0 - a).powi(steps as i32)
             } else {
                 a
             };
-            *acc += (1.0 - acc.w) * a * rgba.truncate().extend(1.0);
+            composite(acc, a, rgba);
             if acc.w >= threshold {
                 record.terminated_early = k + steps < end;
                 break;
@@ -360,8 +436,13 @@ impl<'a> FloatRenderer<'a> {
     /// Colour and per-voxel opacity of density `v` at `p`; shading uses the gradient at `p`.
     #[inline(always)]
     fn classify_density(&self, v: f32, p: Vec3A, dir: Vec3A) -> Vec4 {
-        let i = v as usize; // v >= 0: truncation is floor
-        let f = v - i as f32;
+        let ([i], [f]) = table_position([v]);
+        self.classify_entry(i, f, p, dir)
+    }
+
+    /// Colour and per-voxel opacity between table entries i and i + 1 at fraction f.
+    #[inline(always)]
+    fn classify_entry(&self, i: usize, f: f32, p: Vec3A, dir: Vec3A) -> Vec4 {
         let (a, b) = (self.table[i], self.table[i + 1]);
         let rgba = a + (b - a) * f;
         if self.settings.shading && rgba.w > 0.0 {
@@ -373,45 +454,29 @@ impl<'a> FloatRenderer<'a> {
         rgba
     }
 
-    /// Trilinear interpolation; positions are clamped into the box so that rounding at its
-    /// faces cannot read outside the volume.
+    /// Trilinear interpolation at `p` (see `Grid::interpolate`).
     #[inline(always)]
     pub fn interpolate(&self, p: Vec3A) -> f32 {
-        let d = self.volume.dims;
-        let mut base = [0usize; 3];
-        let mut frac = [0f32; 3];
-        for axis in 0..3 {
-            let hi = (d[axis] - 1) as f32;
-            let x = p[axis].clamp(0.0, hi);
-            // The lower corner stays <= dim-2 so the +1 neighbour exists; at x = dim-1, frac = 1.
-            let b = (x as usize).min(d[axis] - 2);
-            base[axis] = b;
-            frac[axis] = x - b as f32;
+        self.grid
+            .interpolate(&self.volume.data, &[[p.x], [p.y], [p.z]])[0]
+    }
+
+    /// Opacity of a sample per sample spacing S, from its opacity per voxel.
+    #[inline(always)]
+    fn opacity(&self, alpha_per_voxel: f32) -> f32 {
+        let s = self.settings.sample_spacing;
+        if s == 1.0 {
+            alpha_per_voxel
+        } else {
+            correct_opacity(alpha_per_voxel, s)
         }
-        let data = &self.volume.data;
-        let sx = 1;
-        let sy = d[0];
-        let sz = d[0] * d[1];
-        let i0 = base[0] + sy * base[1] + sz * base[2];
-        let v = |i: usize| data[i] as f32;
-        let c00 = lerp(v(i0), v(i0 + sx), frac[0]);
-        let c10 = lerp(v(i0 + sy), v(i0 + sy + sx), frac[0]);
-        let c01 = lerp(v(i0 + sz), v(i0 + sz + sx), frac[0]);
-        let c11 = lerp(v(i0 + sz + sy), v(i0 + sz + sy + sx), frac[0]);
-        lerp(lerp(c00, c10, frac[1]), lerp(c01, c11, frac[1]), frac[2])
     }
 
     /// (diffuse factor, specular term): the per-voxel gradients of the 8 neighbours,
     /// interpolated with the sample's weights (see `shading`).
     fn phong(&self, p: Vec3A, dir: Vec3A) -> (f32, f32) {
-        let d = self.volume.dims;
-        let mut base = [0usize; 3];
-        let mut frac = [0f32; 3];
-        for axis in 0..3 {
-            let x = p[axis].clamp(0.0, (d[axis] - 1) as f32);
-            base[axis] = (x as usize).min(d[axis] - 2);
-            frac[axis] = x - base[axis] as f32;
-        }
+        let (base, frac) = self.grid.cell(&[[p.x], [p.y], [p.z]]);
+        let (base, frac) = (base.map(|b| b[0] as usize), frac.map(|f| f[0]));
         let mut g = Vec3A::ZERO;
         for corner in 0..8 {
             let offset = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
@@ -441,7 +506,176 @@ fn lerp(a: f32, b: f32, t: f32) -> f32 {
     a + t * (b - a)
 }
 
+/// One ray of a packet.
+#[derive(Clone, Copy)]
+struct Lane {
+    ray: Ray,
+    pixel: (u32, u32),
+    /// The samples `march` takes: `first..end` (empty when `begin` marched the ray).
+    first: i64,
+    end: i64,
+    /// Accumulated (R, G, B, A).
+    acc: Vec4,
+    record: RayRecord,
+    /// The opaque surface composited behind instead of the background (geometry).
+    surface: Option<[f32; 4]>,
+}
+
+impl Lane {
+    /// A lane padding the last packet of a row: no samples, never written out.
+    fn idle() -> Lane {
+        Lane {
+            ray: Ray {
+                origin: Vec3A::ZERO,
+                dir: Vec3A::X,
+                t_min: 0.0,
+            },
+            pixel: (0, 0),
+            first: 0,
+            end: 0,
+            acc: Vec4::ZERO,
+            record: RayRecord::default(),
+            surface: None,
+        }
+    }
+}
+
+/// The positions (axis, lane) of samples k (t = k·S) on rays of origins `o` and directions
+/// `d` (axis, lane): o + d·t per component, the one definition every path uses.
+#[inline(always)]
+fn positions<const N: usize>(
+    o: &[[f32; N]; 3],
+    d: &[[f32; N]; 3],
+    k: [i64; N],
+    s: f32,
+) -> [[f32; N]; 3] {
+    let t: [f32; N] = std::array::from_fn(|l| k[l] as f32 * s);
+    std::array::from_fn(|a| std::array::from_fn(|l| o[a][l] + d[a][l] * t[l]))
+}
+
+/// The position of sample k on `ray` (`positions` with one lane).
+#[inline(always)]
+fn position(ray: &Ray, k: i64, s: f32) -> Vec3A {
+    let lane = |v: Vec3A| [[v.x], [v.y], [v.z]];
+    let [[x], [y], [z]] = positions(&lane(ray.origin), &lane(ray.dir), [k], s);
+    Vec3A::new(x, y, z)
+}
+
+/// Table entries and fractions of densities v (per lane, v >= 0).
+#[inline(always)]
+fn table_position<const N: usize>(v: [f32; N]) -> ([usize; N], [f32; N]) {
+    let i = floor(v);
+    (
+        i.map(|i| i as usize),
+        std::array::from_fn(|l| v[l] - i[l] as f32),
+    )
+}
+
+/// floor(x) per lane, for lanes in [0, 2^23) (positions and densities are). Written with a float
+/// add and bit casts, which the compiler does for a whole packet per instruction (`x as i32`
+/// saturates, which it converts lane by lane): x + 2^23 rounds x to the integer n held in its
+/// low mantissa bits; floor is n, or n - 1 when n rounded up.
+#[inline(always)]
+fn floor<const N: usize>(x: [f32; N]) -> [i32; N] {
+    const TWO_23: f32 = 8_388_608.0;
+    std::array::from_fn(|l| {
+        let n = (x[l] + TWO_23).to_bits() as i32 - TWO_23.to_bits() as i32;
+        n - ((n as f32) > x[l]) as i32
+    })
+}
+
+/// Front-to-back compositing: a sample of colour c and opacity a adds (1 - A)·a·(c, 1).
+#[inline(always)]
+fn composite(acc: &mut Vec4, a: f32, rgba: Vec4) {
+    *acc += (1.0 - acc.w) * a * rgba.truncate().extend(1.0);
+}
+
+/// The volume's lattice: per axis the largest coordinate, the largest lower corner of a cell
+/// (dim - 2, so that its +1 neighbour exists) and the stride; the offsets of a cell's four
+/// x-pairs of voxels from its lower corner (rows y, y + 1 at z, then at z + 1) and the span of
+/// voxels a cell covers.
+#[derive(Clone, Copy, Debug)]
+struct Grid {
+    hi: [f32; 3],
+    top: [i32; 3],
+    stride: [usize; 3],
+    rows: [usize; 4],
+    span: usize,
+}
+
+impl Grid {
+    fn new(dims: [usize; 3]) -> Grid {
+        let stride = [1, dims[0], dims[0] * dims[1]];
+        Grid {
+            // Dims are 2..=MAX_DIM (`volume::check_dims`): exact in f32 and i32.
+            hi: dims.map(|d| (d - 1) as f32),
+            top: dims.map(|d| (d - 2) as i32),
+            stride,
+            rows: [0, stride[1], stride[2], stride[2] + stride[1]],
+            span: stride[2] + stride[1] + 2,
+        }
+    }
+
+    /// Lower corners and fractions of the cells holding the positions `p` (axis, lane).
+    /// Positions are clamped into the box so that rounding at its faces cannot read outside
+    /// the volume; at x = dim - 1 the corner stays dim - 2 with fraction 1.
+    #[inline(always)]
+    fn cell<const N: usize>(&self, p: &[[f32; N]; 3]) -> ([[i32; N]; 3], [[f32; N]; 3]) {
+        let mut base = [[0i32; N]; 3];
+        let mut frac = [[0f32; N]; 3];
+        for axis in 0..3 {
+            let x: [f32; N] = std::array::from_fn(|l| p[axis][l].clamp(0.0, self.hi[axis]));
+            base[axis] = floor(x).map(|b| b.min(self.top[axis]));
+            frac[axis] = std::array::from_fn(|l| x[l] - base[axis][l] as f32);
+        }
+        (base, frac)
+    }
+
+    /// Trilinear interpolation of `data` at the positions `p` (axis, lane): x, then y, then z.
+    #[inline(always)]
+    fn interpolate<const N: usize>(&self, data: &[u16], p: &[[f32; N]; 3]) -> [f32; N] {
+        let (base, [fx, fy, fz]) = self.cell(p);
+        // Lane by lane: each cell's four x-pairs are adjacent voxels, which the compiler loads
+        // and interpolates as vectors within the lane.
+        std::array::from_fn(|l| {
+            let i0 = base[0][l] as usize
+                + base[1][l] as usize * self.stride[1]
+                + base[2][l] as usize * self.stride[2];
+            let cube = &data[i0..i0 + self.span];
+            let [c00, c10, c01, c11] = self
+                .rows
+                .map(|r| lerp(cube[r] as f32, cube[r + 1] as f32, fx[l]));
+            lerp(lerp(c00, c10, fy[l]), lerp(c01, c11, fy[l]), fz[l])
+        })
+    }
+}
+
 #[inline]
 fn to_u8(x: f32) -> u8 {
     (x.clamp(0.0, 1.0) * 255.0).round() as u8
+}
+
+#[cfg(test)]
+mod tests {
+    use super::floor;
+
+    /// `floor` equals truncation for integers, halves and their neighbours one ulp away, up to
+    /// the largest density.
+    #[test]
+    fn floor_matches_truncation() {
+        let mut xs = vec![0.0f32, -0.0];
+        for n in 0..=65535u32 {
+            for x in [n as f32, n as f32 + 0.5] {
+                xs.extend([x, f32::from_bits(x.to_bits() + 1)]);
+                if x > 0.0 {
+                    xs.push(f32::from_bits(x.to_bits() - 1));
+                }
+            }
+        }
+        for chunk in xs.chunks(4) {
+            let lanes: [f32; 4] = std::array::from_fn(|l| chunk[l % chunk.len()]);
+            assert_eq!(floor(lanes), lanes.map(|x| x as i32), "{lanes:?}");
+            assert_eq!(floor([chunk[0]]), [chunk[0] as i32]);
+        }
+    }
 }

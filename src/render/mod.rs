@@ -225,6 +225,20 @@ pub fn render_frame(
     height: u32,
     cast: impl Fn(u32, u32) -> ([u8; 4], RayRecord) + Sync,
 ) -> Frame {
+    render_rows(width, height, |py, pixels, rays| {
+        for (px, (pixel, ray)) in pixels.iter_mut().zip(rays).enumerate() {
+            (*pixel, *ray) = cast(px as u32, py);
+        }
+    })
+}
+
+/// Renders a frame by calling `cast_row(py, pixels, records)` for every row, rows in parallel
+/// (rayon); for renderers that cast several pixels of a row together.
+pub fn render_rows(
+    width: u32,
+    height: u32,
+    cast_row: impl Fn(u32, &mut [[u8; 4]], &mut [RayRecord]) + Sync,
+) -> Frame {
     use rayon::prelude::*;
     let mut pixels = vec![[0u8; 4]; (width * height) as usize];
     let mut rays = vec![RayRecord::default(); (width * height) as usize];
@@ -232,13 +246,7 @@ pub fn render_frame(
         .par_chunks_mut(width as usize)
         .zip(rays.par_chunks_mut(width as usize))
         .enumerate()
-        .for_each(|(py, (pixel_row, ray_row))| {
-            for px in 0..width {
-                let (rgba, record) = cast(px, py as u32);
-                pixel_row[px as usize] = rgba;
-                ray_row[px as usize] = record;
-            }
-        });
+        .for_each(|(py, (pixel_row, ray_row))| cast_row(py as u32, pixel_row, ray_row));
     Frame {
         width,
         height,
