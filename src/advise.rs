@@ -18,6 +18,7 @@ use serde::Serialize;
 use crate::config::{HardwareConfig, LeapRegions, LeapStructure};
 use crate::error::{Error, Result};
 use crate::experiment::spec::Mode;
+use crate::leapvalues::distance::DISTANCE_BITS;
 use crate::occupancy::OccupancyKind;
 use crate::run::{self, Model, RunDescription};
 use crate::volume::Volume;
@@ -88,10 +89,19 @@ pub struct CostModel {
     pub row_miss_rate: f64,
     /// Memory cycles a sample occupies each module: 1 + miss rate × penalty.
     pub cycles_per_sample: f64,
-    /// Memory modules a step's extra word (distance volume) is spread over.
+    /// Memory modules; a step's distance word lies on one of them.
     pub modules: f64,
-    /// Cycles a ray waits from issuing a read to its next decision: SDRAM access with a row
-    /// miss (t_RP + t_RCD + CL), two cycles of queueing and return, the skip unit's latency.
+    /// Modules the distance words of the views' rays actually spread over: the modules' count
+    /// over the busiest module's share of the words (`distance_module_spread`). Fewer than
+    /// `modules` when every ray's words keep one parity: axis-aligned views with an even
+    /// number of voxels between rays put every distance word of the frame on half of the
+    /// modules under `replicated4`.
+    pub distance_modules: f64,
+    /// Cycles a ray waits per step besides queueing at a module and at the issue slot: the
+    /// skip unit's latency, CL and two cycles of request and return.
+    pub step_delay: f64,
+    /// Cycles a ray waits from issuing a read to its next decision with a row miss and no
+    /// queueing (leap values: `step_delay` + the miss penalty).
     pub read_round_trip: f64,
     /// Rays in flight.
     pub rays: f64,
@@ -107,23 +117,78 @@ pub struct CostModel {
 /// hits with lagging-first selection on the protocol's volumes).
 pub const CALIBRATED_ROW_MISS_RATE: f64 = 0.03;
 
+/// Row misses of a leap step's distance read (the ray lands in another row and no neighbour
+/// has opened it), per leap step: the design data's (`runs/leaping-structures`, 256×256:
+/// 0–0.45, docs/advise.md).
+pub const LEAP_DISTANCE_MISS_RATE: f64 = 0.25;
+
+/// Mean value analysis of a closed network: `customers` rays, each step a pure delay of
+/// `delay` cycles and a visit to each of `count` alike stations `(demand per step, count)`:
+/// returns the cycles per step of the network (the inverse of its throughput). Service times
+/// are fixed (a module's access, an issue slot), so an arriving ray waits for half of the
+/// service in progress, not a whole one: residence = D (1 + Q − U / 2).
+pub fn closed_network_cycles_per_step(
+    customers: f64,
+    delay: f64,
+    stations: &[(f64, usize)],
+) -> f64 {
+    let n = customers.max(1.0).round() as usize;
+    let mut queue: Vec<f64> = vec![0.0; stations.len()];
+    let mut throughput = 0.0f64;
+    let mut cycles = delay + stations.iter().map(|(d, c)| d * *c as f64).sum::<f64>();
+    for k in 1..=n {
+        let residence: Vec<f64> = stations
+            .iter()
+            .zip(&queue)
+            .map(|((d, _), q)| d * (1.0 + q - (throughput * d).min(1.0) / 2.0).max(1.0))
+            .collect();
+        let total = delay
+            + residence
+                .iter()
+                .zip(stations)
+                .map(|(r, (_, c))| r * *c as f64)
+                .sum::<f64>();
+        throughput = k as f64 / total;
+        queue = residence.iter().map(|r| throughput * r).collect();
+        cycles = 1.0 / throughput;
+    }
+    // Never faster than the busiest station (the half-service correction alone can be).
+    stations.iter().map(|(d, _)| *d).fold(cycles, f64::max)
+}
+
 impl CostModel {
     /// `ray_spacing`: voxels between adjacent rays of the run's image.
     pub fn new(config: &HardwareConfig, ray_spacing: f64) -> CostModel {
         let s = &config.sdram;
         let miss_penalty = (s.t_rp + s.t_rcd) as f64;
         let row_miss_rate = CALIBRATED_ROW_MISS_RATE;
+        let step_delay = config.skip.latency as f64 + s.cl as f64 + 2.0;
         CostModel {
             miss_penalty,
             row_miss_rate,
             cycles_per_sample: 1.0 + row_miss_rate * miss_penalty,
             modules: config.memory.modules() as f64,
-            read_round_trip: (s.t_rp + s.t_rcd + s.cl) as f64 + 2.0 + config.skip.latency as f64,
+            distance_modules: config.memory.modules() as f64,
+            step_delay,
+            read_round_trip: step_delay + miss_penalty,
             rays: config.ray_queue.rays.max(1) as f64,
             ray_spacing,
             distance_same_bank: config.memory.distance_placement
                 == crate::arch::address_map::DistancePlacement::SameBank,
         }
+    }
+
+    /// Row misses per step of a distance-volume run whose steps are a share `sample_share`
+    /// samples: with same-bank placement a sample step's distance read and voxel read open two
+    /// rows of one bank in turn (two misses, shared by rays closer than a voxel: √spacing);
+    /// a leap step's read misses when the leap lands in a row nobody opened.
+    pub fn distance_misses_per_step(&self, sample_share: f64) -> f64 {
+        let ping_pong = if self.distance_same_bank {
+            2.0 * self.ray_spacing.min(1.0).sqrt()
+        } else {
+            0.0
+        };
+        sample_share * ping_pong + (1.0 - sample_share) * LEAP_DISTANCE_MISS_RATE
     }
 
     /// Predicted cycles of a frame that takes `steps` issue steps, `samples` of them samples.
@@ -139,18 +204,32 @@ impl CostModel {
         let per_step = match structure {
             CandidateStructure::None | CandidateStructure::Map => issue,
             CandidateStructure::Distance => {
-                // Every step reads a distance word first: the ray waits a round trip (bound:
-                // R rays per round trip). In the voxel's bank (same-bank placement) a sample
-                // step's distance read and voxel read open two rows of one bank in turn: two
-                // row misses on one of the modules, shared by the rays that read the same words
-                // when rays are closer than a voxel (docs/advise.md).
-                let latency = self.read_round_trip / self.rays;
-                let ping_pong = if self.distance_same_bank {
-                    2.0 * self.miss_penalty / self.modules * self.ray_spacing.min(1.0).sqrt()
-                } else {
-                    0.0
-                };
-                issue.max(latency).max(1.0 + sample_share * ping_pong)
+                // Every step, leap or sample, reads a distance word on one of the modules and
+                // the ray waits for it: a closed network of R rays, each step a delay (skip
+                // latency, CL, request and return), the issue slot (1 cycle) and a module
+                // (the word and the row misses of the step, docs/advise.md). The samples'
+                // voxel words occupy every module a share of the time the rays cannot use.
+                let spread = self.distance_modules.clamp(1.0, self.modules);
+                let per_module = (1.0
+                    + self.distance_misses_per_step(sample_share) * self.miss_penalty)
+                    / spread;
+                let voxel_load = sample_share * self.cycles_per_sample;
+                let modules = spread.round().max(1.0) as usize;
+                let mut per_step = issue.max(voxel_load + per_module);
+                for _ in 0..50 {
+                    let busy = (voxel_load / per_step).min(0.95);
+                    let network = closed_network_cycles_per_step(
+                        self.rays,
+                        self.step_delay,
+                        &[(1.0, 1), (per_module / (1.0 - busy), modules)],
+                    );
+                    let next = network.max(voxel_load + per_module).max(issue);
+                    if (next - per_step).abs() < 1e-9 {
+                        break;
+                    }
+                    per_step = next;
+                }
+                per_step
             }
             CandidateStructure::LeapValues => {
                 // The next position waits for the step's own sample words; every step reads.
@@ -160,6 +239,71 @@ impl CostModel {
         };
         steps * per_step
     }
+}
+
+/// Modules the distance words of `views` spread over (docs/advise.md): for each view a block of
+/// 32×32 adjacent pixels at the centre of the run's image (adjacent, so the real spacing
+/// between rays), each ray walked through the volume at the sample spacing, each position's
+/// base voxel's distance word located by the address map; the result is the modules' count
+/// times the mean over the busiest module's share (1 / share: 4 when the words are spread
+/// evenly, 2 when they keep to half of the modules).
+pub fn distance_module_spread(
+    base: &RunDescription,
+    volume: &Volume,
+    views: &[String],
+) -> Result<f64> {
+    let map = crate::arch::address_map::AddressMap::new(&base.hardware.memory, volume.dims);
+    let modules = base.hardware.memory.modules().max(1);
+    let spacing = base.settings().sample_spacing.max(1.0 / 64.0);
+    let dims = volume.dims.map(|d| d as f32);
+    let mut counts = vec![0u64; modules];
+    for view in views {
+        let run = RunDescription {
+            view: view.clone(),
+            ..base.clone()
+        };
+        let camera = run.camera(volume)?;
+        let (w, h) = base.size;
+        let (x0, y0) = (w.saturating_sub(32) / 2, h.saturating_sub(32) / 2);
+        for py in y0..(y0 + 32).min(h) {
+            for px in x0..(x0 + 32).min(w) {
+                let ray = camera.voxel_ray(px, py, volume.spacing);
+                // The ray's span inside [0, dims − 1] per axis (slab test).
+                let (mut t0, mut t1) = (ray.t_min, f32::INFINITY);
+                for a in 0..3 {
+                    let (o, d) = (ray.origin[a], ray.dir[a]);
+                    if d.abs() < 1e-12 {
+                        if o < 0.0 || o > dims[a] - 1.0 {
+                            t1 = -1.0;
+                        }
+                        continue;
+                    }
+                    let (ta, tb) = ((0.0 - o) / d, (dims[a] - 1.0 - o) / d);
+                    t0 = t0.max(ta.min(tb));
+                    t1 = t1.min(ta.max(tb));
+                }
+                if t1 <= t0 {
+                    continue;
+                }
+                let mut t = (t0 / spacing).ceil() * spacing;
+                while t <= t1 {
+                    let p = ray.origin + ray.dir * t;
+                    let base_voxel = [0, 1, 2].map(|a| {
+                        (p[a].max(0.0).floor() as usize).min(volume.dims[a].saturating_sub(2))
+                    });
+                    counts[map.distance_word(base_voxel).module as usize % modules] += 1;
+                    t += spacing;
+                }
+            }
+        }
+    }
+    let total: u64 = counts.iter().sum();
+    let busiest = counts.iter().copied().max().unwrap_or(0);
+    Ok(if busiest == 0 {
+        modules as f64
+    } else {
+        total as f64 / busiest as f64
+    })
 }
 
 /// A candidate's structure, for the cost model.
@@ -343,10 +487,14 @@ pub fn advise(base: &RunDescription, volume: &Volume, options: &AdviseOptions) -
     let scale = (base.size.0 as f64 * base.size.1 as f64) / (w as f64 * h as f64);
     // The view width is the volume's largest extent (`Camera::for_volume`).
     let ray_spacing = *volume.dims.iter().max().unwrap_or(&1) as f64 / base.size.0.max(1) as f64;
-    let cost = CostModel::new(&base.hardware, ray_spacing);
+    let mut cost = CostModel::new(&base.hardware, ray_spacing);
+    if options.structures.contains(&Structure::Distance) {
+        cost.distance_modules = distance_module_spread(base, volume, &options.views)?;
+    }
     let sram_bits = base.hardware.occupancy.sram_bits;
     let mut transfer_function = String::new();
     let mut ranking = Vec::new();
+    let mut widest_distance: Option<crate::leapvalues::DistanceVolume> = None;
     for mode in candidate_modes(volume.dims, &options.structures) {
         let mut hardware = apply_mode(&base.hardware, &mode, &base.tf);
         let (map_bits, fits) = if mode.subcube > 0 {
@@ -366,7 +514,27 @@ pub fn advise(base: &RunDescription, volume: &Volume, options: &AdviseOptions) -
             hardware,
             ..base.clone()
         };
-        let prepared = run::prepare(&run, volume)?;
+        let prepared = if mode.distance_bits > 0 {
+            // One distance transform for every width: the widest is built once (on a run
+            // prepared without leaping) and narrowed, which is exact (the saturation is the
+            // transform's last step).
+            let mut plain = run.clone();
+            plain.hardware.occupancy.structure = LeapStructure::Map;
+            plain.hardware.occupancy.subcube = 0;
+            let mut prepared = run::prepare(&plain, volume)?;
+            let kind = run.hardware.occupancy.kind;
+            if widest_distance.is_none() {
+                widest_distance = Some(prepared.build_distance_volume(*DISTANCE_BITS.end(), kind)?);
+            }
+            let distance = widest_distance
+                .as_ref()
+                .expect("built above")
+                .narrowed(mode.distance_bits)?;
+            prepared.set_distance_volume(distance, kind)?;
+            prepared
+        } else {
+            run::prepare(&run, volume)?
+        };
         transfer_function = prepared.transfer_function.clone();
         let (mut steps, mut samples, mut leaps) = (0u64, 0u64, 0u64);
         let mut skippable = None;

@@ -26,7 +26,8 @@ use crate::camera::{check_image_size, Camera, Projection, View};
 use crate::config::{HardwareConfig, LeapRegions, RaySelection};
 use crate::error::{Error, Result};
 use crate::functional::renderer::{FixedRenderer, Leaping};
-use crate::leapvalues::{LeapValueStats, LeapValueVolume};
+use crate::leapvalues::{distance_volume, DistanceVolume, LeapValueStats, LeapValueVolume};
+use crate::occupancy::OccupancyKind;
 use crate::render::float::FloatRenderer;
 use crate::render::{Frame, FrameStats, RayRecord, RenderSettings};
 use crate::transfer;
@@ -220,6 +221,50 @@ impl<'v> Prepared<'v> {
             },
             Renderer::Float(_) => Err(Error::Invalid(
                 "the float model does not leap with an occupancy map".into(),
+            )),
+        }
+    }
+
+    /// The distance volume of `bits` this run's renderer would build for the transfer function
+    /// and the map kind `kind` (as `FixedRenderer::new` builds it: '0' any non-zero voxel,
+    /// class the classification table's test). Fixed-point models only.
+    pub fn build_distance_volume(&self, bits: u32, kind: OccupancyKind) -> Result<DistanceVolume> {
+        let Renderer::Fixed(r) = &self.renderer else {
+            return Err(Error::Invalid(
+                "the float model has no distance volume".into(),
+            ));
+        };
+        distance_volume(self.volume, bits, |lo, hi| match kind {
+            OccupancyKind::Zero => hi > 0,
+            OccupancyKind::Class => r.table.any_visible(lo, hi),
+        })
+    }
+
+    /// Makes a run prepared without leaping leap with `distance` (kind `kind`), as if it had
+    /// been prepared with the distance structure of `distance.bits` bits: the advisor builds one
+    /// transform and narrows it for each width (`DistanceVolume::narrowed`). An error for a
+    /// run that already leaps or is not fixed-point, or a volume of other dimensions.
+    pub fn set_distance_volume(
+        &mut self,
+        distance: DistanceVolume,
+        kind: OccupancyKind,
+    ) -> Result<()> {
+        match &mut self.renderer {
+            Renderer::Fixed(r)
+                if r.leaping == Leaping::None
+                    && r.leap_values.is_none()
+                    && distance.dims == self.volume.dims =>
+            {
+                r.leaping = Leaping::Distance {
+                    bits: distance.bits,
+                    kind,
+                };
+                r.distance = Some(distance);
+                Ok(())
+            }
+            _ => Err(Error::Invalid(
+                "a distance volume replaces no leaping of a fixed-point run of the same volume"
+                    .into(),
             )),
         }
     }

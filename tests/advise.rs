@@ -80,7 +80,13 @@ fn full_image_steps_equal_the_functional_model() {
     let run = base(spec, "class", size, None);
     let opts = options(2, size, vec![Structure::Map, Structure::Distance]);
     let advice = advise::advise(&run, &volume, &opts).unwrap();
-    for mode in ["ert", "ert+leap4", "ert+leap8+hier", "ert+distance8"] {
+    for mode in [
+        "ert",
+        "ert+leap4",
+        "ert+leap8+hier",
+        "ert+distance4",
+        "ert+distance8",
+    ] {
         let candidate = advice.ranking.iter().find(|c| c.mode == mode).unwrap();
         let m = vizsim::experiment::spec::Mode::parse(mode).unwrap();
         let described = RunDescription {
@@ -292,4 +298,63 @@ fn a_table_is_validated_against_its_own_frame_rates() {
         "{err}"
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The advisor builds one distance transform and narrows it to each width: the narrowed volume
+/// equals the transform built at that width ('0' and class visibility).
+#[test]
+fn a_narrowed_distance_volume_equals_its_own_transform() {
+    use vizsim::leapvalues::distance_volume;
+    let volume = dataset::load("phantom:metaballs:32", None).unwrap();
+    for threshold in [0u16, 40, 200] {
+        let visible = |_lo: u16, hi: u16| hi > threshold;
+        let wide = distance_volume(&volume, 8, visible).unwrap();
+        for bits in [1, 4, 7, 8] {
+            let narrow = wide.narrowed(bits).unwrap();
+            let direct = distance_volume(&volume, bits, visible).unwrap();
+            assert_eq!(narrow.values, direct.values, "{threshold} {bits}");
+            assert_eq!(narrow.saturated_cells, direct.saturated_cells);
+            assert_eq!(narrow.visible_cells, direct.visible_cells);
+            assert_eq!(narrow.bits, bits);
+        }
+        assert!(wide.narrowed(9).is_err());
+        assert!(wide.narrowed(4).unwrap().narrowed(8).is_err());
+    }
+}
+
+/// The distance words' module spread: an axis-aligned view with two voxels between rays keeps
+/// every word on half of `replicated4`'s modules; one voxel between rays, or a view at 45°,
+/// spreads them over all four.
+#[test]
+fn distance_words_spread_over_the_modules_the_geometry_gives() {
+    let volume = dataset::load("phantom:sphere:64", None).unwrap();
+    let spread = |size: u32, view: &str| {
+        let run = base("phantom:sphere:64", "class", (size, size), None);
+        advise::distance_module_spread(&run, &volume, &[view.to_string()]).unwrap()
+    };
+    let axis_two = spread(32, "orbit:0/72");
+    assert!((axis_two - 2.0).abs() < 0.05, "{axis_two}");
+    let axis_one = spread(64, "orbit:0/72");
+    assert!(axis_one > 3.8, "{axis_one}");
+    let diagonal = spread(32, "orbit:9/72");
+    assert!(diagonal > 3.5, "{diagonal}");
+}
+
+/// The closed network: one ray takes the delay and every demand in turn; many rays are held to
+/// the busiest station (fixed service: at most one step per its demand).
+#[test]
+fn the_closed_network_has_its_bounds() {
+    let one = advise::closed_network_cycles_per_step(1.0, 12.0, &[(1.0, 1), (0.5, 4)]);
+    assert!((one - 15.0).abs() < 1e-9, "{one}");
+    let many = advise::closed_network_cycles_per_step(64.0, 12.0, &[(1.0, 1), (0.5, 4)]);
+    assert!((1.0..1.2).contains(&many), "{many}");
+    let bottleneck = advise::closed_network_cycles_per_step(64.0, 12.0, &[(1.0, 1), (3.0, 2)]);
+    assert!((3.0..3.3).contains(&bottleneck), "{bottleneck}");
+    // More rays never slow the network.
+    let mut last = f64::INFINITY;
+    for rays in 1..=32 {
+        let c = advise::closed_network_cycles_per_step(rays as f64, 16.0, &[(1.0, 1), (0.8, 4)]);
+        assert!(c <= last + 1e-12, "{rays}: {c} > {last}");
+        last = c;
+    }
 }

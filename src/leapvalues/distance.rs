@@ -75,6 +75,43 @@ impl DistanceVolume {
     pub fn saturation(&self) -> u32 {
         (1u32 << self.bits) - 1
     }
+
+    /// The same distances stored in `bits` (at most this volume's width): each value cut to
+    /// 2^bits − 1. Equal to `distance_volume` at `bits` (the saturation is the transform's last
+    /// step), without a second transform: the advisor builds the widest once and narrows it.
+    pub fn narrowed(&self, bits: u32) -> Result<DistanceVolume> {
+        if !DISTANCE_BITS.contains(&bits) || bits > self.bits {
+            return Err(Error::Invalid(format!(
+                "a {}-bit distance volume cannot be narrowed to {bits} bits",
+                self.bits
+            )));
+        }
+        let started = Instant::now();
+        let cap = ((1u32 << bits) - 1) as u8;
+        let values: Vec<u8> = self.values.iter().map(|&v| v.min(cap)).collect();
+        let [nx, ny, nz] = self.dims;
+        // Cells only (the last layer of each axis is no cell's base and stores 0).
+        let saturated_cells = values
+            .chunks(nx)
+            .enumerate()
+            .map(|(row, line)| {
+                let (y, z) = (row % ny, row / ny);
+                if y + 1 < ny && z + 1 < nz {
+                    line[..nx - 1].iter().filter(|&&v| v == cap).count() as u64
+                } else {
+                    0
+                }
+            })
+            .sum();
+        Ok(DistanceVolume {
+            dims: self.dims,
+            bits,
+            values,
+            visible_cells: self.visible_cells,
+            saturated_cells,
+            elapsed: started.elapsed(),
+        })
+    }
 }
 
 /// n = floor(d / S), exactly (the largest n with n·S <= d); 0 for a spacing outside
