@@ -231,9 +231,9 @@ impl LeapValueVolume {
     }
 }
 
-/// `leap_codes` entry of an unflagged word.
+/// Leap code (`LeapCells`) of an unflagged word.
 const UNFLAGGED: u8 = 0;
-/// `leap_codes` entry of a flagged word whose leap value does not fit a byte (read the word).
+/// Leap code of a flagged word whose leap value does not fit a byte (read the word).
 const LONG_LEAP: u8 = u8::MAX;
 
 /// A word's leap field as one byte: 0 unflagged, L + 1 for L < 254, else `LONG_LEAP`.
