@@ -17,7 +17,7 @@ use serde::Serialize;
 
 use crate::config::{HardwareConfig, LeapRegions, LeapStructure};
 use crate::error::{Error, Result};
-use crate::experiment::spec::Mode;
+use crate::experiment::spec::{Mode, MODE_FIELDS};
 use crate::leapvalues::distance::DISTANCE_BITS;
 use crate::occupancy::OccupancyKind;
 use crate::run::{self, Model, RunDescription};
@@ -688,17 +688,6 @@ struct Pair {
     modes: std::collections::BTreeMap<String, (std::collections::BTreeMap<u32, f64>, bool)>,
 }
 
-/// Fields an experiment mode sets (never part of a pair's identity).
-const MODE_FIELDS: &[&str] = &[
-    "compositing.ert",
-    "occupancy.subcube",
-    "occupancy.hierarchy",
-    "occupancy.kind",
-    "occupancy.structure",
-    "occupancy.distance_bits",
-    "leap_values.regions",
-];
-
 /// What `validate` found: a row per pair whose results are all there, and the pairs left out.
 #[derive(Clone, Debug, Serialize)]
 pub struct Validation {
@@ -719,6 +708,7 @@ fn axes_of(v: &serde_json::Value) -> Vec<(String, serde_json::Value)> {
     v.as_object()
         .map(|o| {
             o.iter()
+                // What a mode or the tf axis sets is never part of a pair's identity.
                 .filter(|(k, _)| !MODE_FIELDS.contains(&k.as_str()))
                 .map(|(k, v)| (k.clone(), v.clone()))
                 .collect()

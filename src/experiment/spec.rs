@@ -398,8 +398,9 @@ pub const MAX_RUNS: u64 = 200_000;
 /// Memory one expanded run holds (its resolved configuration and identity), rounded up.
 const BYTES_PER_RUN: u64 = 4096;
 
-/// Configuration fields a mode or the tf axis sets.
-const MODE_FIELDS: [&str; 11] = [
+/// Configuration fields a mode or the tf axis sets (never an axis; `advise` leaves them out of
+/// a pair's identity).
+pub(crate) const MODE_FIELDS: [&str; 11] = [
     "compositing.ert",
     "occupancy.subcube",
     "occupancy.hierarchy",
