@@ -259,7 +259,7 @@ impl<'v> Prepared<'v> {
                     bits: distance.bits,
                     kind,
                 };
-                r.distance = Some(distance);
+                r.set_distance_volume(distance);
                 Ok(())
             }
             _ => Err(Error::Invalid(

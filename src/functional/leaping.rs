@@ -174,7 +174,9 @@ impl Step {
     }
 }
 
-pub trait SpaceSkipper: Sync {
+/// A skipper is a small value (references and widths): the ray loop copies it per ray, so that
+/// its fields live in registers rather than being read again at every step.
+pub trait SpaceSkipper: Sync + Copy {
     /// The step at position `pos` of `ray` (not yet limited to the ray's remaining positions),
     /// updating the ray's `state` (which starts at `SkipState::default()`).
     fn decide(&self, pos: [i64; 3], ray: &FixedRay, state: &mut SkipState) -> Step;
@@ -189,6 +191,7 @@ pub trait SpaceSkipper: Sync {
 }
 
 /// Every position is sampled.
+#[derive(Clone, Copy)]
 pub struct NoSkipping;
 
 impl SpaceSkipper for NoSkipping {
@@ -201,6 +204,7 @@ impl SpaceSkipper for NoSkipping {
 /// Occupancy-map space leaping (Meißner et al. 2001), optionally with the two-level hierarchy:
 /// an empty sub-cube is left in one leap; when its whole 2×2×2 group is empty, the group is.
 /// `policy` says whether the position in the empty sub-cube is sampled before the leap.
+#[derive(Clone, Copy)]
 pub struct OccupancyLeaping<'a> {
     map: &'a OccupancyMap,
     hierarchy: bool,
@@ -249,32 +253,40 @@ impl SpaceSkipper for OccupancyLeaping<'_> {
 /// sample cell has base voxel b, the stored distance d(b) allows n = floor(d / S) steps; n >= 1
 /// leaps n positions (sampling the position first under sample-then-leap), n = 0 samples.
 /// floor(d / S) is a table of 2^bits entries per spacing, as the hardware would hold it.
+#[derive(Clone, Copy)]
 pub struct DistanceLeaping<'a> {
     volume: &'a DistanceVolume,
     policy: SkipPolicy,
-    /// floor(d / S) per stored distance d.
-    steps: Vec<u64>,
+    /// floor(d / S) per stored distance d (`DistanceLeaping::steps_table`).
+    steps: &'a [u64],
     /// Position fraction bits (the base voxel is the position's integer part).
     pos_frac_bits: u32,
 }
 
 impl<'a> DistanceLeaping<'a> {
-    /// `spacing` is the sample spacing S (an upper bound of |V| up to the increment's rounding,
-    /// which the rule's one-step margin covers: docs/leapvalues.md).
+    /// `steps` is `steps_table(volume, S)` for the sample spacing S.
     pub fn new(
         volume: &'a DistanceVolume,
-        spacing: f32,
+        steps: &'a [u64],
         policy: SkipPolicy,
         pos_frac_bits: u32,
     ) -> Self {
+        debug_assert_eq!(steps.len(), volume.saturation() as usize + 1);
         DistanceLeaping {
             volume,
             policy,
-            steps: (0..=volume.saturation())
-                .map(|d| distance_steps(d, spacing))
-                .collect(),
+            steps,
             pos_frac_bits,
         }
+    }
+
+    /// floor(d / S) for every distance d the volume stores. `spacing` is the sample spacing S
+    /// (an upper bound of |V| up to the increment's rounding, which the rule's one-step margin
+    /// covers: docs/leapvalues.md).
+    pub fn steps_table(volume: &DistanceVolume, spacing: f32) -> Vec<u64> {
+        (0..=volume.saturation())
+            .map(|d| distance_steps(d, spacing))
+            .collect()
     }
 
     /// The base voxel of the cell a sample at `pos` interpolates in (as
@@ -314,7 +326,12 @@ impl SpaceSkipper for DistanceLeaping<'_> {
 ///   M(m), n(P)'s word w decides: flagged with L: composite w's density over k = max(L, 1)
 ///   positions and advance k; unflagged with density m: composite m, advance 1; anything else:
 ///   back to T, processing this sample there.
-pub struct LeapValueLeaping<'a> {
+///
+/// `HOMOGENEOUS` selects the use at compile time (`EmptyRegionLeaping`,
+/// `HomogeneousRegionLeaping`): the empty-region ray loop then carries no region-mode code,
+/// and its samples are known to be interpolated ones.
+#[derive(Clone, Copy)]
+pub struct LeapValueLeaping<'a, const HOMOGENEOUS: bool> {
     volume: &'a LeapValueVolume,
     /// The words' density fields (homogeneous leaping's density volume); None for empty-region
     /// leaping, which never reads them.
@@ -322,15 +339,30 @@ pub struct LeapValueLeaping<'a> {
     /// The packed cells (`LeapCells::Packed`): the same densities in their low bytes.
     packed: Option<&'a [u16]>,
     pos_frac_bits: u32,
+    /// Index strides of the axes (1, x size, x·y size): the nearest voxel's index from three
+    /// independent products, not a chain, since the ray's next address waits for it.
+    strides: [usize; 3],
 }
 
-impl<'a> LeapValueLeaping<'a> {
+/// Leap values used for empty regions only (lossless).
+pub type EmptyRegionLeaping<'a> = LeapValueLeaping<'a, false>;
+/// Leap values used for every homogeneous region (lossy).
+pub type HomogeneousRegionLeaping<'a> = LeapValueLeaping<'a, true>;
+
+impl<'a, const HOMOGENEOUS: bool> LeapValueLeaping<'a, HOMOGENEOUS> {
+    /// The strategy for `volume`, whose words were built for the same use (`regions`).
     pub fn new(volume: &'a LeapValueVolume, pos_frac_bits: u32) -> Self {
+        debug_assert_eq!(
+            volume.regions == LeapRegions::Homogeneous,
+            HOMOGENEOUS,
+            "leap words built for another use"
+        );
         LeapValueLeaping {
             volume,
             densities: volume.densities.as_ref().map(|v| &v.data[..]),
             packed: volume.packed_cells().map(|c| &c[..]),
             pos_frac_bits,
+            strides: [1, volume.dims[0], volume.dims[0] * volume.dims[1]],
         }
     }
 
@@ -341,7 +373,19 @@ impl<'a> LeapValueLeaping<'a> {
         let (pf, d) = (self.pos_frac_bits, self.volume.dims);
         let half = 1i64 << (pf - 1);
         let v = [0, 1, 2].map(|a| (((pos[a] + half) >> pf).max(0) as usize).min(d[a] - 1));
-        self.volume.index(v)
+        v[0] + v[1] * self.strides[1] + v[2] * self.strides[2]
+    }
+
+    /// Empty-region leaping's advance after sampling word `i` (`empty_region_advance`), its
+    /// leap code read from the packed cells when there are.
+    #[inline(always)]
+    fn empty_region_advance(&self, i: usize) -> u32 {
+        match self.packed {
+            Some(cells) => self
+                .volume
+                .empty_region_advance_of_code((cells[i] >> 8) as u8, i),
+            None => self.volume.empty_region_advance(i),
+        }
     }
 
     /// The density field of word `i`.
@@ -379,53 +423,53 @@ impl<'a> LeapValueLeaping<'a> {
     }
 }
 
-impl SpaceSkipper for LeapValueLeaping<'_> {
+impl<const HOMOGENEOUS: bool> SpaceSkipper for LeapValueLeaping<'_, HOMOGENEOUS> {
     #[inline(always)]
     fn decide(&self, pos: [i64; 3], _: &FixedRay, state: &mut SkipState) -> Step {
         let nearest = self.nearest(pos);
-        match self.volume.regions {
-            LeapRegions::Empty => Step {
-                advance: self.volume.empty_region_advance(nearest) as u64,
+        if !HOMOGENEOUS {
+            return Step {
+                advance: self.empty_region_advance(nearest) as u64,
                 waits_for_words: true,
                 ..Step::SAMPLE
-            },
-            LeapRegions::Homogeneous => {
-                let Some(m) = state.region else {
-                    return self.trilinear(pos, nearest, state);
-                };
-                let density = self.density(nearest);
-                let steps = match self.volume.leap(nearest) {
-                    Some(l) => l.max(1),
-                    None if density == m => 1,
-                    None => {
-                        // Rule (c): this sample is processed in T; the step was issued in M,
-                        // so it still waited for its words.
-                        return Step {
-                            waits_for_words: true,
-                            ..self.trilinear(pos, nearest, state)
-                        };
-                    }
-                };
-                state.region = Some(density);
-                Step {
-                    sample: true,
-                    advance: steps as u64,
-                    value: SampleValue::Region { density, steps },
+            };
+        }
+        let Some(m) = state.region else {
+            return self.trilinear(pos, nearest, state);
+        };
+        let density = self.density(nearest);
+        let steps = match self.volume.leap(nearest) {
+            Some(l) => l.max(1),
+            None if density == m => 1,
+            None => {
+                // Rule (c): this sample is processed in T; the step was issued in M, so it
+                // still waited for its words.
+                return Step {
                     waits_for_words: true,
-                    ..Step::SAMPLE
-                }
+                    ..self.trilinear(pos, nearest, state)
+                };
             }
+        };
+        state.region = Some(density);
+        Step {
+            sample: true,
+            advance: steps as u64,
+            value: SampleValue::Region { density, steps },
+            waits_for_words: true,
+            ..Step::SAMPLE
         }
     }
 }
 
 /// The strategy a hardware configuration selects, as one type (so callers need no dispatch of
 /// their own). New strategies are added here and in `FixedRenderer::skipper`.
+#[derive(Clone, Copy)]
 pub enum ConfiguredSkipper<'a> {
     None(NoSkipping),
     Occupancy(OccupancyLeaping<'a>),
     Distance(DistanceLeaping<'a>),
-    LeapValues(LeapValueLeaping<'a>),
+    EmptyRegionLeapValues(EmptyRegionLeaping<'a>),
+    HomogeneousLeapValues(HomogeneousRegionLeaping<'a>),
 }
 
 impl SpaceSkipper for ConfiguredSkipper<'_> {
@@ -435,7 +479,8 @@ impl SpaceSkipper for ConfiguredSkipper<'_> {
             ConfiguredSkipper::None(s) => s.decide(pos, ray, state),
             ConfiguredSkipper::Occupancy(s) => s.decide(pos, ray, state),
             ConfiguredSkipper::Distance(s) => s.decide(pos, ray, state),
-            ConfiguredSkipper::LeapValues(s) => s.decide(pos, ray, state),
+            ConfiguredSkipper::EmptyRegionLeapValues(s) => s.decide(pos, ray, state),
+            ConfiguredSkipper::HomogeneousLeapValues(s) => s.decide(pos, ray, state),
         }
     }
 

@@ -10,8 +10,8 @@ use super::arith::{
 use std::borrow::Cow;
 
 use super::leaping::{
-    Bisection, ConfiguredSkipper, DistanceLeaping, LeapValueLeaping, NoSkipping, OccupancyLeaping,
-    SampleValue, SkipState, SpaceSkipper, Step,
+    Bisection, ConfiguredSkipper, DistanceLeaping, EmptyRegionLeaping, HomogeneousRegionLeaping,
+    NoSkipping, OccupancyLeaping, SampleValue, SkipState, SpaceSkipper, Step,
 };
 use super::setup::{check_widths, setup_ray, FixedRay};
 use super::Widths;
@@ -86,8 +86,10 @@ pub struct FixedRenderer<'a> {
     /// What a step in an empty sub-cube does (`skip.policy`); no effect without leaping.
     pub skip_policy: SkipPolicy,
     pub map: Option<OccupancyMap>,
-    /// The distance volume, with `Leaping::Distance`.
-    pub distance: Option<DistanceVolume>,
+    /// The distance volume, with `Leaping::Distance` (`set_distance_volume` replaces it).
+    distance: Option<DistanceVolume>,
+    /// floor(d / S) per stored distance d of `distance` (`DistanceLeaping::steps_table`).
+    distance_steps: Vec<u64>,
     /// The voxel words with leap values, with `Leaping::LeapValues`.
     pub leap_values: Option<LeapValueVolume>,
     /// Leap values over 8-bit densities: their packed cells, which the renderer interpolates
@@ -245,8 +247,18 @@ impl<'a> FixedRenderer<'a> {
             leaping,
             skip_policy: config.skip.policy,
             map,
+            distance_steps: distance
+                .as_ref()
+                .map(|d| DistanceLeaping::steps_table(d, settings.sample_spacing))
+                .unwrap_or_default(),
             distance,
         })
+    }
+
+    /// Leaps with `distance` from now on (with its steps table for this renderer's spacing).
+    pub fn set_distance_volume(&mut self, distance: DistanceVolume) {
+        self.distance_steps = DistanceLeaping::steps_table(&distance, self.settings.sample_spacing);
+        self.distance = Some(distance);
     }
 
     /// The space-skipping strategy this renderer was configured with.
@@ -258,14 +270,18 @@ impl<'a> FixedRenderer<'a> {
             _ => match (&self.distance, &self.leap_values) {
                 (Some(distance), _) => ConfiguredSkipper::Distance(DistanceLeaping::new(
                     distance,
-                    self.settings.sample_spacing,
+                    &self.distance_steps,
                     self.skip_policy,
                     self.widths.position_frac_bits,
                 )),
-                (None, Some(words)) => ConfiguredSkipper::LeapValues(LeapValueLeaping::new(
-                    words,
-                    self.widths.position_frac_bits,
-                )),
+                (None, Some(words)) => match words.regions {
+                    LeapRegions::Empty => ConfiguredSkipper::EmptyRegionLeapValues(
+                        EmptyRegionLeaping::new(words, self.widths.position_frac_bits),
+                    ),
+                    LeapRegions::Homogeneous => ConfiguredSkipper::HomogeneousLeapValues(
+                        HomogeneousRegionLeaping::new(words, self.widths.position_frac_bits),
+                    ),
+                },
                 (None, None) => ConfiguredSkipper::None(NoSkipping),
             },
         }
@@ -278,14 +294,29 @@ impl<'a> FixedRenderer<'a> {
             ConfiguredSkipper::None(s) => self.render_with(camera, &s),
             ConfiguredSkipper::Occupancy(s) => self.render_with(camera, &s),
             ConfiguredSkipper::Distance(s) => self.render_with(camera, &s),
-            ConfiguredSkipper::LeapValues(s) => self.render_with(camera, &s),
+            ConfiguredSkipper::EmptyRegionLeapValues(s) => self.render_with(camera, &s),
+            ConfiguredSkipper::HomogeneousLeapValues(s) => self.render_with(camera, &s),
         }
     }
 
+    /// Renders a frame with `skipper`. The iso comparator is also chosen once per frame (a ray
+    /// loop with it and one without), so the ray loop of a frame without it carries none of its
+    /// code.
     pub fn render_with<S: SpaceSkipper>(&self, camera: &Camera, skipper: &S) -> Frame {
+        match self.iso {
+            Some(_) => self.render_frame_with::<S, true>(camera, skipper),
+            None => self.render_frame_with::<S, false>(camera, skipper),
+        }
+    }
+
+    fn render_frame_with<S: SpaceSkipper, const ISO: bool>(
+        &self,
+        camera: &Camera,
+        skipper: &S,
+    ) -> Frame {
         render_frame(camera.width, camera.height, |px, py| {
             let ray = self.setup(camera, px, py);
-            let (rgba, mut record) = self.cast(&ray, skipper);
+            let (rgba, mut record) = self.cast_with::<S, ISO>(&ray, skipper);
             record.positions_cut = ray.cut;
             (rgba, record)
         })
@@ -381,8 +412,26 @@ impl<'a> FixedRenderer<'a> {
         state: &mut SkipState,
         remaining: u64,
     ) -> Step {
-        let Some(iso) = &self.iso else {
-            return skipper.decide(pos, ray, state).within(remaining);
+        match self.iso {
+            Some(_) => self.step_with::<S, true>(skipper, pos, ray, state, remaining),
+            None => self.step_with::<S, false>(skipper, pos, ray, state, remaining),
+        }
+    }
+
+    /// `step` with the iso comparator's presence known at compile time (`ISO` must be
+    /// `self.iso.is_some()`).
+    #[inline(always)]
+    fn step_with<S: SpaceSkipper, const ISO: bool>(
+        &self,
+        skipper: &S,
+        pos: [i64; 3],
+        ray: &FixedRay,
+        state: &mut SkipState,
+        remaining: u64,
+    ) -> Step {
+        let iso = match &self.iso {
+            Some(iso) if ISO => iso,
+            _ => return skipper.decide(pos, ray, state).within(remaining),
         };
         let (pf, wb) = (self.widths.position_frac_bits, self.widths.weight_bits);
         let hit = |p: [i64; 3]| interpolate_exact(&self.volume, p, pf, wb) >= self.iso_threshold;
@@ -456,6 +505,20 @@ impl<'a> FixedRenderer<'a> {
     /// Marches one ray: at each position the step (sample or not, then advance), until the
     /// last position, ERT or (iso mode) the refined surface.
     pub fn cast<S: SpaceSkipper>(&self, ray: &FixedRay, skipper: &S) -> ([u8; 4], RayRecord) {
+        match self.iso {
+            Some(_) => self.cast_with::<S, true>(ray, skipper),
+            None => self.cast_with::<S, false>(ray, skipper),
+        }
+    }
+
+    /// `cast` with the iso comparator's presence known at compile time (`ISO` must be
+    /// `self.iso.is_some()`).
+    #[inline(always)]
+    fn cast_with<S: SpaceSkipper, const ISO: bool>(
+        &self,
+        ray: &FixedRay,
+        skipper: &S,
+    ) -> ([u8; 4], RayRecord) {
         let mut record = RayRecord {
             hit: ray.samples > 0,
             first_sample: ray.first_k,
@@ -464,11 +527,14 @@ impl<'a> FixedRenderer<'a> {
         };
         let mut acc = Accumulator::default();
         let mut state = SkipState::default();
+        // A copy per ray: a local the compiler keeps in registers (the frame's skipper is
+        // shared with the other threads, so its fields would be read again at every step).
+        let skipper = &{ *skipper };
         let mut pos = ray.start;
         let mut k: u64 = 0;
         let n = ray.samples as u64;
         while k < n {
-            let step = self.step(skipper, pos, ray, &mut state, n - k);
+            let step = self.step_with::<S, ISO>(skipper, pos, ray, &mut state, n - k);
             step.record(&mut record);
             if step.sample
                 && self.compositor.composite_steps(

@@ -196,7 +196,13 @@ impl LeapValueVolume {
     /// branch predictor cannot learn, and the ray's next address hangs on it.
     #[inline(always)]
     pub fn empty_region_advance(&self, index: usize) -> u32 {
-        let code = self.code(index);
+        self.empty_region_advance_of_code(self.code(index), index)
+    }
+
+    /// `empty_region_advance` of voxel `index` whose leap code (`leap_code`) the caller has
+    /// read already (from the packed cells it holds).
+    #[inline(always)]
+    pub fn empty_region_advance_of_code(&self, code: u8, index: usize) -> u32 {
         if code == LONG_LEAP {
             return self.leap(index).unwrap_or(1).max(1);
         }
