@@ -236,9 +236,12 @@ impl<'a> FloatRenderer<'a> {
             std::array::from_fn(|a| std::array::from_fn(|l| lanes[l].ray.origin[a]));
         let d: [[f32; N]; 3] =
             std::array::from_fn(|a| std::array::from_fn(|l| lanes[l].ray.dir[a]));
+        // Local copies of what every sample reads: the renderer is shared with the other
+        // threads, so the compiler would read its fields again at every sample.
+        let (grid, data) = (self.grid, &self.volume.data[..]);
         while (0..N).any(|l| k[l] < end[l]) {
             let p = positions(&o, &d, std::array::from_fn(|l| k[l].min(end[l])), s);
-            let (entry, f) = table_position(self.grid.interpolate(&self.volume.data, &p));
+            let (entry, f) = table_position(grid.interpolate(data, &p));
             for (l, lane) in lanes.iter_mut().enumerate() {
                 if k[l] >= end[l] {
                     continue;
