@@ -6,9 +6,30 @@ mod cli;
 use clap::Parser;
 
 fn main() {
+    end_quietly_when_the_reader_is_gone();
     let args = cli::Cli::parse();
     if let Err(err) = cli::run(args) {
         eprintln!("error: {err:#}");
         std::process::exit(1);
     }
+}
+
+/// `vizsim table runs/x | head`: once the reader of standard output has gone, printing fails
+/// (Rust ignores SIGPIPE, so the write returns EPIPE) and `println!` panics. A command-line
+/// tool ends quietly there instead, with the status of one killed by SIGPIPE (128 + 13), as a C
+/// tool would be. Any other panic still reports as usual.
+fn end_quietly_when_the_reader_is_gone() {
+    let report = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let payload = info.payload();
+        let message = payload
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| payload.downcast_ref::<&str>().copied())
+            .unwrap_or_default();
+        if message.starts_with("failed printing to stdout") && message.contains("Broken pipe") {
+            std::process::exit(128 + 13);
+        }
+        report(info);
+    }));
 }

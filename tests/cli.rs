@@ -414,3 +414,24 @@ fn sim_rejects_impossible_hardware_before_running() {
         );
     }
 }
+
+/// `vizsim … | head`: when the reader of standard output goes away, the command ends quietly
+/// with the SIGPIPE status (141), not with a panic (status 101 and a message on stderr).
+#[test]
+fn a_reader_that_goes_away_ends_the_command_quietly() {
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args(["sim", "--dataset", "phantom:sphere:16", "--size", "8x8"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run vizsim");
+    // Close the reading end before the command has printed anything (it starts in
+    // milliseconds; this takes microseconds), so that its first line meets a closed pipe.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().expect("wait for vizsim");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "panicked: {stderr}");
+    assert_eq!(out.status.code(), Some(141), "stderr: {stderr}");
+}
