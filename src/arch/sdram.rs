@@ -409,6 +409,19 @@ impl SdramDevice {
         self.banks[bank].open_row
     }
 
+    /// Whether `bank` has a row open.
+    #[inline]
+    pub fn is_open(&self, bank: usize) -> bool {
+        self.open_rows[bank & 15] != CLOSED
+    }
+
+    /// The open row of `bank`, which has one (no `Option` to unwrap on the command path).
+    #[inline]
+    pub fn open_row_of_open_bank(&self, bank: usize) -> u32 {
+        debug_assert!(self.is_open(bank));
+        self.open_rows[bank & 15]
+    }
+
     /// Whether `row` is the open row of `bank`.
     #[inline]
     pub fn row_is_open(&self, bank: u32, row: u32) -> bool {
