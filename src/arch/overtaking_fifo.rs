@@ -265,7 +265,11 @@ mod tests {
         if !fifo.enabled || open(0) || fifo.at(0).bypassed >= fifo.max_bypass {
             return Some(0);
         }
-        Some((0..fifo.window.min(fifo.len)).find(|&i| open(i)).unwrap_or(0))
+        Some(
+            (0..fifo.window.min(fifo.len))
+                .find(|&i| open(i))
+                .unwrap_or(0),
+        )
     }
 
     /// Random pushes, takes, ACTs and PREs (a small xorshift generator): the mask's selection

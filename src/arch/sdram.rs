@@ -444,6 +444,7 @@ impl SdramDevice {
     }
 
     /// The earliest cycle the timing rules and the command bus allow the command.
+    #[inline]
     pub fn earliest(&self, cmd: Command) -> u64 {
         let k = cmd.kind().index();
         let timing = match cmd.bank() {
@@ -458,6 +459,9 @@ impl SdramDevice {
     }
 
     /// Issues a legal command at `now`: applies every rule it precedes and its state change.
+    /// Inlined: on the controller's command path the command's kind is known, so only its own
+    /// effects remain.
+    #[inline(always)]
     pub fn issue(&mut self, cmd: Command, now: u64) {
         debug_assert!(self.is_legal(cmd, now), "illegal {cmd:?} at {now}");
         let effects = &self.effects[cmd.kind().index()];
