@@ -247,7 +247,10 @@ impl SdramModule {
     /// every bank closed), so only the timing is checked here.
     #[inline(always)]
     fn try_issue(&mut self, cmd: Command, now: u64, tag: u32) -> Result<(), u64> {
-        debug_assert!(self.device.state_allows(cmd), "{cmd:?} in the wrong bank state");
+        debug_assert!(
+            self.device.state_allows(cmd),
+            "{cmd:?} in the wrong bank state"
+        );
         let ready = self.device.earliest(cmd);
         if now < ready {
             return Err(ready);
