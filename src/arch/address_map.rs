@@ -282,7 +282,7 @@ impl MemoryConfig {
     }
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct WordAddress {
     pub module: u32,
     pub bank: u32,

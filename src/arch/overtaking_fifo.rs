@@ -3,12 +3,18 @@
 //! oldest entries. Every request a younger one overtakes counts one bypass; once a request has
 //! been bypassed `max_bypass` times it is served next, whatever it costs (no starvation).
 //! Disabled, it is a plain in-order FIFO.
-
-use std::collections::VecDeque;
+//!
+//! **Row-hit mask.** The FIFO keeps its own copy of the module's open rows (the controller
+//! reports every ACT and PRE: `row_opened`, `row_closed`) and, per queue position, a bit that
+//! says whether that request targets its bank's open row. The bit is set when a request enters
+//! and changes only when its bank opens or closes a row, which is rare next to the reads, so
+//! the selection is a bit scan instead of a row compare per queued request. Positions from 64
+//! on (deep FIFOs with wide windows only) have no bit and are compared when the window reaches
+//! them.
 
 use super::address_map::WordAddress;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PendingWord {
     pub tag: u32,
     pub addr: WordAddress,
@@ -21,12 +27,29 @@ pub struct PendingWord {
     pub precharged: bool,
 }
 
+/// No row open (rows are < 2^24, validated).
+const CLOSED: u32 = u32::MAX;
+
+/// Queue positions with a row-hit bit.
+const MASKED: usize = 64;
+
 pub struct OvertakingFifo {
-    queue: VecDeque<PendingWord>,
+    /// A ring of a power-of-two capacity >= `depth`; position i of the queue (0 = oldest) is
+    /// `ring[(head + i) & ring_mask]`.
+    ring: Box<[PendingWord]>,
+    ring_mask: usize,
+    head: usize,
+    len: usize,
     depth: usize,
     enabled: bool,
     window: usize,
+    /// The window's positions that have a row-hit bit.
+    window_bits: u64,
     max_bypass: u32,
+    /// Bit i: the request at position i (< 64) targets the open row of its bank.
+    hits: u64,
+    /// The open row per bank (`CLOSED` if none), as the device has it (banks <= 16).
+    open_rows: [u32; 16],
     /// Requests served ahead of an older one.
     pub overtakes: u64,
     /// Selections forced by the bypass bound.
@@ -36,12 +59,19 @@ pub struct OvertakingFifo {
 
 impl OvertakingFifo {
     pub fn new(depth: usize, enabled: bool, window: usize, max_bypass: u32) -> Self {
+        let capacity = depth.max(1).next_power_of_two();
         OvertakingFifo {
-            queue: VecDeque::with_capacity(depth),
+            ring: vec![PendingWord::default(); capacity].into_boxed_slice(),
+            ring_mask: capacity - 1,
+            head: 0,
+            len: 0,
             depth,
             enabled,
             window,
+            window_bits: low_bits(window),
             max_bypass,
+            hits: 0,
+            open_rows: [CLOSED; 16],
             overtakes: 0,
             forced: 0,
             peak: 0,
@@ -49,85 +79,237 @@ impl OvertakingFifo {
     }
 
     pub fn can_accept(&self) -> bool {
-        self.queue.len() < self.depth
+        self.len < self.depth
     }
 
     pub fn len(&self) -> usize {
-        self.queue.len()
+        self.len
     }
 
     pub fn is_empty(&self) -> bool {
-        self.queue.is_empty()
+        self.len == 0
     }
 
+    #[inline(always)]
+    fn at(&self, position: usize) -> &PendingWord {
+        &self.ring[(self.head + position) & self.ring_mask]
+    }
+
+    #[inline(always)]
+    fn at_mut(&mut self, position: usize) -> &mut PendingWord {
+        &mut self.ring[(self.head + position) & self.ring_mask]
+    }
+
+    #[inline(always)]
+    fn is_open(&self, addr: &WordAddress) -> bool {
+        self.open_rows[addr.bank as usize & 15] == addr.row
+    }
+
+    #[inline]
     pub fn push(&mut self, word: PendingWord) {
         debug_assert!(self.can_accept());
-        self.queue.push_back(word);
-        self.peak = self.peak.max(self.queue.len());
+        let position = self.len;
+        // Branch-free: whether a new request hits follows the data.
+        let hit = (position < MASKED) & self.is_open(&word.addr);
+        self.hits |= (hit as u64) << (position & (MASKED - 1));
+        *self.at_mut(position) = word;
+        self.len += 1;
+        self.peak = self.peak.max(self.len);
+    }
+
+    pub fn get(&self, index: usize) -> &PendingWord {
+        debug_assert!(index < self.len);
+        self.at(index)
     }
 
     pub fn get_mut(&mut self, index: usize) -> &mut PendingWord {
-        &mut self.queue[index]
+        debug_assert!(index < self.len);
+        self.at_mut(index)
+    }
+
+    /// Whether the request at `index` targets its bank's open row.
+    #[inline(always)]
+    pub fn is_hit(&self, index: usize) -> bool {
+        if index < MASKED {
+            self.hits >> index & 1 != 0
+        } else {
+            self.is_open(&self.at(index).addr)
+        }
+    }
+
+    /// The device opened `row` in `bank` (an ACT): its queued requests become row hits.
+    pub fn row_opened(&mut self, bank: u32, row: u32) {
+        self.open_rows[bank as usize & 15] = row;
+        for position in 0..self.len.min(MASKED) {
+            let addr = self.at(position).addr;
+            if addr.bank == bank && addr.row == row {
+                self.hits |= 1 << position;
+            }
+        }
+    }
+
+    /// The device closed `bank`'s row (a PRE): its queued requests are no longer row hits.
+    pub fn row_closed(&mut self, bank: u32) {
+        self.open_rows[bank as usize & 15] = CLOSED;
+        let mut bits = self.hits;
+        while bits != 0 {
+            let position = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            if self.at(position).addr.bank == bank {
+                self.hits &= !(1 << position);
+            }
+        }
     }
 
     /// Whether any request in the window targets `row` of `bank`.
     pub fn window_hits(&self, bank: u32, row: u32) -> bool {
-        self.queue
-            .iter()
-            .take(self.window)
-            .any(|w| w.addr.bank == bank && w.addr.row == row)
+        (0..self.window.min(self.len)).any(|i| {
+            let a = &self.at(i).addr;
+            a.bank == bank && a.row == row
+        })
     }
 
     /// The request to serve: the oldest one bypassed `max_bypass` times; else the oldest row
-    /// hit (`is_open(addr)`) within the window; else the oldest.
-    pub fn select(&self, is_open: impl Fn(&WordAddress) -> bool) -> Option<usize> {
-        if self.queue.is_empty() {
+    /// hit within the window; else the oldest.
+    #[inline]
+    pub fn select(&self) -> Option<usize> {
+        if self.len == 0 {
             return None;
         }
         // The oldest request is served if overtaking is off, if it is a row hit itself (the
         // common case), or if it reached the bypass bound.
-        if !self.enabled || is_open(&self.queue[0].addr) {
+        if !self.enabled || self.hits & 1 != 0 {
             return Some(0);
         }
         // Every take bypasses all requests older than the one taken, so bypass counts never
         // rise along the queue: if any request in the window reached the bound, the oldest did.
-        debug_assert!(self
-            .queue
-            .iter()
-            .zip(self.queue.iter().skip(1))
-            .all(|(older, younger)| older.bypassed >= younger.bypassed));
-        if self.queue[0].bypassed >= self.max_bypass {
+        debug_assert!((1..self.len).all(|i| self.at(i - 1).bypassed >= self.at(i).bypassed));
+        if self.at(0).bypassed >= self.max_bypass {
             return Some(0);
         }
-        let (front, back) = self.queue.as_slices();
-        let window = self.window.min(self.queue.len());
-        let (front, back) = if window <= front.len() {
-            (&front[..window], &back[..0])
-        } else {
-            (front, &back[..window - front.len()])
-        };
-        let hit = front
-            .iter()
-            .chain(back)
-            .position(|w| is_open(&w.addr))
-            .unwrap_or(0);
-        Some(hit)
+        let in_window = self.hits & self.window_bits;
+        if in_window != 0 {
+            return Some(in_window.trailing_zeros() as usize);
+        }
+        // Only windows wider than the mask look further, comparing rows.
+        let hit = (MASKED..self.window.min(self.len)).find(|&i| self.is_open(&self.at(i).addr));
+        Some(hit.unwrap_or(0))
     }
 
     /// Removes the request at `index` to be served; every older request was overtaken.
     #[inline(always)]
     pub fn take(&mut self, index: usize) -> PendingWord {
-        if index > 0 {
-            self.overtakes += 1;
-            for older in self.queue.iter_mut().take(index) {
-                older.bypassed += 1;
-            }
-        } else if self.queue[0].bypassed >= self.max_bypass && self.enabled {
-            self.forced += 1;
-        }
+        debug_assert!(index < self.len);
+        let served = *self.at(index);
         if index == 0 {
-            return self.queue.pop_front().expect("queue not empty");
+            if self.enabled && served.bypassed >= self.max_bypass {
+                self.forced += 1;
+            }
+            self.head = (self.head + 1) & self.ring_mask;
+            self.hits >>= 1;
+        } else {
+            self.overtakes += 1;
+            // The older requests move one place towards the younger end, each counting one
+            // bypass; the younger ones stay where they are. Logical positions below `index`
+            // keep their number, those above move down by one.
+            for position in (0..index).rev() {
+                let mut older = *self.at(position);
+                older.bypassed += 1;
+                *self.at_mut(position + 1) = older;
+            }
+            self.head = (self.head + 1) & self.ring_mask;
+            let below = low_bits(index);
+            self.hits = (self.hits & below) | ((self.hits >> 1) & !below);
         }
-        self.queue.remove(index).expect("index within the queue")
+        self.len -= 1;
+        // The request now at the last masked position came from beyond the mask.
+        if self.len >= MASKED && self.is_open(&self.at(MASKED - 1).addr) {
+            self.hits |= 1 << (MASKED - 1);
+        }
+        served
+    }
+}
+
+/// A mask of the lowest `n` bits (all 64 for n >= 64).
+fn low_bits(n: usize) -> u64 {
+    if n >= 64 {
+        u64::MAX
+    } else {
+        (1u64 << n) - 1
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn word(tag: u32, bank: u32, row: u32) -> PendingWord {
+        PendingWord {
+            tag,
+            addr: WordAddress {
+                module: 0,
+                bank,
+                row,
+                column: tag,
+            },
+            ..PendingWord::default()
+        }
+    }
+
+    /// The selection the FIFO made before the row-hit mask: a row compare per request.
+    fn reference_select(fifo: &OvertakingFifo) -> Option<usize> {
+        if fifo.len == 0 {
+            return None;
+        }
+        let open = |i: usize| fifo.is_open(&fifo.at(i).addr);
+        if !fifo.enabled || open(0) || fifo.at(0).bypassed >= fifo.max_bypass {
+            return Some(0);
+        }
+        Some(
+            (0..fifo.window.min(fifo.len))
+                .find(|&i| open(i))
+                .unwrap_or(0),
+        )
+    }
+
+    /// Random pushes, takes, ACTs and PREs (a small xorshift generator): the mask's selection
+    /// equals the row compares', for masked and unmasked depths.
+    #[test]
+    fn hit_mask_selects_as_row_compares_do() {
+        for (depth, window) in [(16, 8), (16, 16), (100, 90), (70, 3)] {
+            let mut fifo = OvertakingFifo::new(depth, true, window, 8);
+            let mut state = 0x9e37_79b9_7f4a_7c15u64;
+            let mut next = |n: u64| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                state % n
+            };
+            let mut tag = 0;
+            for _ in 0..200_000 {
+                match next(8) {
+                    0..=3 if fifo.can_accept() => {
+                        tag += 1;
+                        fifo.push(word(tag, next(4) as u32, next(3) as u32));
+                    }
+                    4 | 5 => {
+                        let choice = fifo.select();
+                        assert_eq!(choice, reference_select(&fifo));
+                        if let Some(i) = choice {
+                            fifo.take(i);
+                        }
+                    }
+                    6 => {
+                        let bank = next(4) as u32;
+                        fifo.row_closed(bank);
+                        fifo.row_opened(bank, next(3) as u32);
+                    }
+                    _ => fifo.row_closed(next(4) as u32),
+                }
+                for i in 0..fifo.len.min(MASKED) {
+                    assert_eq!(fifo.hits >> i & 1 == 1, fifo.is_open(&fifo.at(i).addr));
+                }
+            }
+        }
     }
 }

@@ -409,6 +409,19 @@ impl SdramDevice {
         self.banks[bank].open_row
     }
 
+    /// Whether `bank` has a row open.
+    #[inline]
+    pub fn is_open(&self, bank: usize) -> bool {
+        self.open_rows[bank & 15] != CLOSED
+    }
+
+    /// The open row of `bank`, which has one (no `Option` to unwrap on the command path).
+    #[inline]
+    pub fn open_row_of_open_bank(&self, bank: usize) -> u32 {
+        debug_assert!(self.is_open(bank));
+        self.open_rows[bank & 15]
+    }
+
     /// Whether `row` is the open row of `bank`.
     #[inline]
     pub fn row_is_open(&self, bank: u32, row: u32) -> bool {
@@ -431,6 +444,7 @@ impl SdramDevice {
     }
 
     /// The earliest cycle the timing rules and the command bus allow the command.
+    #[inline]
     pub fn earliest(&self, cmd: Command) -> u64 {
         let k = cmd.kind().index();
         let timing = match cmd.bank() {
@@ -445,6 +459,9 @@ impl SdramDevice {
     }
 
     /// Issues a legal command at `now`: applies every rule it precedes and its state change.
+    /// Inlined: on the controller's command path the command's kind is known, so only its own
+    /// effects remain.
+    #[inline(always)]
     pub fn issue(&mut self, cmd: Command, now: u64) {
         debug_assert!(self.is_legal(cmd, now), "illegal {cmd:?} at {now}");
         let effects = &self.effects[cmd.kind().index()];

@@ -241,31 +241,42 @@ impl SdramModule {
         });
     }
 
-    /// Issues `cmd` at `now` if the device allows it. `tag`: the request a READ serves.
-    fn try_issue(&mut self, cmd: Command, now: u64, tag: u32) -> bool {
-        if !self.device.is_legal(cmd, now) {
-            return false;
+    /// Issues `cmd` at `now` if the timing rules allow it, else returns the earliest cycle
+    /// they do. `tag`: the request a READ serves. The controller only asks for commands whose
+    /// state precondition holds (READ and PRE to an open bank, ACT to a closed one, REF with
+    /// every bank closed), so only the timing is checked here.
+    #[inline(always)]
+    fn try_issue(&mut self, cmd: Command, now: u64, tag: u32) -> Result<(), u64> {
+        debug_assert!(
+            self.device.state_allows(cmd),
+            "{cmd:?} in the wrong bank state"
+        );
+        let ready = self.device.earliest(cmd);
+        if now < ready {
+            return Err(ready);
         }
         // The row a READ reads or a PRE closes: the bank's open row before the command.
         let (bank, row, column) = match cmd {
             Command::Act { bank, row } => (bank, row, 0),
-            Command::Read { bank, column } => {
-                (bank, self.device.open_row(bank).unwrap_or(0), column)
+            // READ, WRITE and PRE go to an open bank.
+            Command::Read { bank, column } | Command::Write { bank, column } => {
+                (bank, self.device.open_row_of_open_bank(bank), column)
             }
-            Command::Write { bank, column } => {
-                (bank, self.device.open_row(bank).unwrap_or(0), column)
-            }
-            Command::Pre { bank } => (bank, self.device.open_row(bank).unwrap_or(0), 0),
+            Command::Pre { bank } => (bank, self.device.open_row_of_open_bank(bank), 0),
             Command::Ref => (0, 0, 0),
         };
         self.device.issue(cmd, now);
         match cmd {
-            Command::Act { row, .. } => {
+            Command::Act { bank, row } => {
                 self.stats.activates += 1;
                 self.last_act_row = row;
+                self.fifo.row_opened(bank as u32, row);
             }
             Command::Read { .. } => self.stats.reads += 1,
-            Command::Pre { .. } => self.stats.precharges += 1,
+            Command::Pre { bank } => {
+                self.stats.precharges += 1;
+                self.fifo.row_closed(bank as u32);
+            }
             Command::Ref => self.stats.refreshes += 1,
             Command::Write { .. } => self.stats.writes += 1,
         }
@@ -278,7 +289,7 @@ impl SdramModule {
             column,
             tag,
         };
-        true
+        Ok(())
     }
 
     /// The command issued in cycle `now`, if any (`module` is left 0: the module does not know
@@ -336,18 +347,20 @@ impl SdramModule {
             self.stats.busy_cycles += 1;
         }
         if self.refresh_pending {
-            let open = (0..self.device.banks()).find(|&b| self.device.open_row(b).is_some());
+            let open = (0..self.device.banks()).find(|&b| self.device.is_open(b));
             let command = match open {
                 Some(bank) => Command::Pre { bank },
                 None => Command::Ref,
             };
-            if self.try_issue(command, now, 0) {
-                if command == Command::Ref {
-                    self.refresh_pending = false;
+            return match self.try_issue(command, now, 0) {
+                Ok(()) => {
+                    if command == Command::Ref {
+                        self.refresh_pending = false;
+                    }
+                    now + 1
                 }
-                return now + 1;
-            }
-            return self.device.earliest(command);
+                Err(ready) => ready,
+            };
         }
         if self.policy == RowPolicy::Close {
             for bank in 0..self.to_close.len() {
@@ -356,7 +369,7 @@ impl SdramModule {
                 }
                 match self.device.open_row(bank) {
                     Some(row) if !self.fifo.window_hits(bank as u32, row) => {
-                        if self.try_issue(Command::Pre { bank }, now, 0) {
+                        if self.try_issue(Command::Pre { bank }, now, 0).is_ok() {
                             self.to_close[bank] = false;
                             return now + 1;
                         }
@@ -366,34 +379,34 @@ impl SdramModule {
             }
         }
         let pending_close = self.policy == RowPolicy::Close && self.to_close.iter().any(|&c| c);
-        let device = &self.device;
-        let Some(index) = self.fifo.select(|a| device.row_is_open(a.bank, a.row)) else {
+        let Some(index) = self.fifo.select() else {
             if WRITES && !self.writes.is_empty() {
                 return self.control_write_path(now, pending_close);
             }
             return if pending_close { now + 1 } else { u64::MAX };
         };
-        let request = *self.fifo.get_mut(index);
+        let request = *self.fifo.get(index);
         let bank = request.addr.bank as usize;
-        let command = match self.device.open_row(bank) {
-            Some(row) if row == request.addr.row => {
-                if self.voxel_fifo.len() >= self.voxel_depth {
-                    self.stats.voxel_fifo_full_cycles += 1;
-                    return now + 1;
-                }
-                Command::Read {
-                    bank,
-                    column: request.addr.column,
-                }
+        // The FIFO's row-hit bit says whether the request's row is open; a miss needs its bank
+        // closed first if another row is open.
+        let command = if self.fifo.is_hit(index) {
+            if self.voxel_fifo.len() >= self.voxel_depth {
+                self.stats.voxel_fifo_full_cycles += 1;
+                return now + 1;
             }
-            Some(_) => Command::Pre { bank },
-            None => Command::Act {
+            Command::Read {
+                bank,
+                column: request.addr.column,
+            }
+        } else if self.device.is_open(bank) {
+            Command::Pre { bank }
+        } else {
+            Command::Act {
                 bank,
                 row: request.addr.row,
-            },
+            }
         };
-        if !self.try_issue(command, now, request.tag) {
-            let ready = self.device.earliest(command);
+        if let Err(ready) = self.try_issue(command, now, request.tag) {
             return if pending_close { now + 1 } else { ready };
         }
         match command {
@@ -445,8 +458,7 @@ impl SdramModule {
                 row: write.addr.row,
             },
         };
-        if !self.try_issue(command, now, 0) {
-            let ready = self.device.earliest(command);
+        if let Err(ready) = self.try_issue(command, now, 0) {
             return if pending_close { now + 1 } else { ready };
         }
         match command {
