@@ -32,7 +32,7 @@ pub struct SimArgs {
     /// Sampled simulation: simulate this share of the frame's ray units in detail, in (0, 1]
     /// (e.g. 0.05), and estimate the cycles with a 95 % interval; the image stays exact
     /// (docs/sampling.md). Default: every cycle simulated.
-    #[arg(long, value_name = "RATE")]
+    #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
     sample: Option<f64>,
     /// Latency of the ideal memory, in cycles (1..=1048576).
     #[arg(long, default_value_t = 6)]
