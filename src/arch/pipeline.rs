@@ -669,7 +669,7 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
         None => (w, h),
         Some(_) => (ray_count as u32, 1),
     };
-    if let Some(c) = checkpoints.as_deref_mut().filter(|c| c.due(ray_count)) {
+    if let Some(c) = checkpoints.filter(|c| c.due(ray_count)) {
         c.take(now, &stats, memory);
     }
     if stopped {
