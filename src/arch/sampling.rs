@@ -13,9 +13,11 @@
 //! A unit's cycles are the cycles between the admissions of its first ray and of the next
 //! unit's first ray to the ray queue (`pipeline::Checkpoints`); over all units they add up to
 //! the frame's cycles exactly, and a segment stops at the next unit's admission. The middle
-//! units' cycles are estimated by a **ratio estimator** on the functional model's steps per
-//! unit (known for every unit), the interval from the **successive differences** of the
-//! residuals between neighbouring strata (the usual variance estimator of systematic samples).
+//! units' cycles are estimated by a **ratio estimator**: cycles per unit of work issued in the
+//! sampled windows (steps, plus rays that miss the volume) times the middle units' work, known
+//! from the functional model. The 95 % interval comes from the residuals between strata
+//! (successive differences or simple random sampling, the larger), plus an allowance for the
+//! warm-up's bias.
 
 use std::ops::Range;
 
