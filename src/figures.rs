@@ -316,6 +316,15 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
     let datasets: BTreeSet<String> = lines.iter().map(raw_dataset).collect();
     let tfs: BTreeSet<String> = lines.iter().map(|l| text(l, "tf")).collect();
     for model in &models {
+        // Sampled simulation (docs/sampling.md): the figures are estimates, marked ≈.
+        let model_title = if lines
+            .iter()
+            .any(|l| text(l, "model") == *model && l["sampled"] == Value::Bool(true))
+        {
+            format!("{model} model, ≈ sampled")
+        } else {
+            format!("{model} model")
+        };
         let (metric, y_label) = if model == "cycle" {
             (Metric::Cycles, "clock cycles per frame")
         } else {
@@ -343,7 +352,7 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                         continue;
                     }
                     let title =
-                        format!("{label}, {}{} ({model} model)", tf_label(tf), facet.title());
+                        format!("{label}, {}{} ({model_title})", tf_label(tf), facet.title());
                     let grouped = points(
                         &facet.lines,
                         |l| Some(text(l, "mode")),
@@ -389,7 +398,7 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                     continue;
                 }
                 let title = format!(
-                    "{label}: frame rate against sub-cube size{} ({model} model)",
+                    "{label}: frame rate against sub-cube size{} ({model_title})",
                     facet.title()
                 );
                 let grouped = points(
@@ -457,7 +466,7 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                         continue;
                     }
                     let title = format!(
-                        "{label}: frame rate against {axis}{} ({model} model)",
+                        "{label}: frame rate against {axis}{} ({model_title})",
                         facet.title()
                     );
                     let grouped = points(

@@ -16,7 +16,10 @@ use serde_json::Value;
 use crate::arch::address_map::AddressMap;
 use crate::arch::block_lookup::BlockLookup;
 use crate::arch::command_trace::CommandTrace;
-use crate::arch::pipeline::{simulate_with, CycleStats, SimOptions, StallCycles};
+use crate::arch::pipeline::{
+    simulate_with, tile_order, CycleResult, CycleStats, SimOptions, StallCycles,
+};
+use crate::arch::sampling::{seed_of, simulate_sampled, SampledEstimate, Sampling};
 use crate::arch::sdram_module::SdramMemory;
 use crate::arch::trace::Waveform;
 use crate::arch::voxel_memory::{IdealMemory, VoxelMemory};
@@ -25,6 +28,7 @@ use crate::bricks::RayRangeStats;
 use crate::camera::{check_image_size, Camera, Projection, View};
 use crate::config::{HardwareConfig, LeapRegions, RaySelection};
 use crate::error::{Error, Result};
+use crate::functional::leaping::ConfiguredSkipper;
 use crate::functional::renderer::{FixedRenderer, Leaping};
 use crate::leapvalues::{distance_volume, DistanceVolume, LeapValueStats, LeapValueVolume};
 use crate::occupancy::OccupancyKind;
@@ -103,6 +107,10 @@ pub struct RunDescription {
     /// The resolved hardware configuration: widths, leaping (`occupancy`), ERT
     /// (`compositing`), the pipeline and the memory. The float model takes its ERT threshold.
     pub hardware: HardwareConfig,
+    /// Cycle model: simulate a sample of the frame and estimate its timing (docs/sampling.md);
+    /// `None` (the default) simulates every cycle. Written out only when set.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sample: Option<Sampling>,
 }
 
 impl RunDescription {
@@ -120,6 +128,7 @@ impl RunDescription {
             model,
             memory: Memory::Sdram,
             hardware,
+            sample: None,
         }
     }
 
@@ -141,6 +150,17 @@ impl RunDescription {
         check_image_size(self.size.0, self.size.1)?;
         check_frame_budget(self.size)?;
         self.settings().validate()?;
+        if let Some(sampling) = &self.sample {
+            sampling.validate("sample")?;
+            if self.model != Model::Cycle {
+                return Err(Error::Invalid(format!(
+                    "sampling (rate {}) applies to the cycle model only; the {} model is \
+                     exact and fast",
+                    sampling.rate,
+                    self.model.name()
+                )));
+            }
+        }
         if let Memory::Ideal { latency } = self.memory {
             if !(1..=MAX_IDEAL_LATENCY).contains(&latency) {
                 return Err(Error::Invalid(format!(
@@ -460,9 +480,20 @@ pub struct Measurements {
     /// Iso mode: samples refining hits (included in `samples`); not written out when 0.
     #[serde(skip_serializing_if = "is_zero")]
     pub refinement_samples: u64,
-    /// Cycle model: clock cycles of the frame.
+    /// Cycle model: clock cycles of the frame (sampled: the estimate).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cycles: Option<u64>,
+    /// Sampled cycle model: half-width of the 95 % confidence interval of `cycles`, cycles.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cycles_ci95: Option<f64>,
+    /// Sampled cycle model: `true`; the timing figures (cycles, fps, stalls, discards, SDRAM
+    /// counters and rates) are estimates, the counts (steps, samples...) the functional
+    /// model's (docs/sampling.md). Absent for exact runs.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sampled: Option<bool>,
+    /// Sampled cycle model: the sampling rate.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sample_rate: Option<f64>,
     /// Cycle model: samples issued after their ray's ERT, discarded at compositing.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub discarded_after_ert: Option<u64>,
@@ -519,9 +550,12 @@ pub struct RunReport {
     /// Cycle model: everything the pipeline counted (stalls, occupancy histograms...).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub pipeline: Option<CycleStats>,
-    /// Cycle model: the memory's own statistics.
+    /// Cycle model: the memory's own statistics (sampled: its counters estimated).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub memory_stats: Option<Value>,
+    /// Sampled cycle model: the sample and the estimate (docs/sampling.md).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sampling: Option<SampledEstimate>,
     /// Wall-clock time of the frame (not of loading or preparing).
     pub wall_seconds: f64,
     /// Samples per wall-clock second of this frame.
@@ -556,33 +590,78 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
     let start = Instant::now();
     let mut pipeline = None;
     let mut memory_stats = None;
+    let mut sampled = None;
+    let dims = prepared.volume.dims;
     let frame = match (&prepared.renderer, run.model) {
         (Renderer::Float(r), _) => r.render(&camera),
         (Renderer::Fixed(r), Model::Step) => r.render(&camera),
-        (Renderer::Fixed(r), _) => {
-            let (result, stats) = match run.memory {
-                Memory::Sdram => {
-                    let dims = prepared.volume.dims;
-                    let map = match &r.blocks {
-                        Some(blocks) => AddressMap::blocked(&config.memory, dims, blocks.clone()),
-                        None => AddressMap::new(&config.memory, dims),
-                    };
-                    let memory = SdramMemory::with_map(
-                        &config.memory,
-                        &config.sdram,
-                        map,
-                        config.clock.frequency_mhz,
-                    );
-                    simulate_memory(r, &camera, memory, config, probes)?
+        (Renderer::Fixed(r), _) => match &run.sample {
+            Some(sampling) => {
+                if probes.waveform.is_some() || probes.command_trace.is_some() {
+                    return Err(Error::Invalid(
+                        "a sampled simulation records no waveform or command trace: simulate \
+                         the frame exactly (without --sample)"
+                            .into(),
+                    ));
                 }
-                Memory::Ideal { latency } => {
-                    simulate_memory(r, &camera, IdealMemory::new(latency), config, probes)?
+                // The image and every ray's steps from the functional model (equal to the
+                // cycle model's image bit for bit); only the timing is sampled.
+                let frame = r.render(&camera);
+                let order = tile_order(camera.width, camera.height, config.ray_queue.tile);
+                // Rays that miss the volume before each issue-order position.
+                let mut misses_before = Vec::with_capacity(order.len() + 1);
+                misses_before.push(0u64);
+                for &ray in &order {
+                    let last = *misses_before.last().expect("starts with 0");
+                    misses_before.push(last + !frame.rays[ray].hit as u64);
                 }
-            };
-            memory_stats = Some(stats);
-            pipeline = Some(result.stats);
-            result.frame
-        }
+                // Built once: with the hierarchy it is a structure of its own.
+                let skipper = r.skipper();
+                let seed = seed_of(&serde_json::to_string(run).map_err(|e| {
+                    Error::Invalid(format!("run description not serialisable: {e}"))
+                })?);
+                let estimate = simulate_sampled(
+                    &order,
+                    sampling,
+                    seed,
+                    config.clock.frequency_mhz,
+                    {
+                        let stats = frame.stats();
+                        [stats.samples, stats.leaps]
+                    },
+                    |range| misses_before[range.end] - misses_before[range.start],
+                    |rays, checkpoints| {
+                        let options = SimOptions {
+                            rays: Some(rays),
+                            checkpoints: Some(checkpoints),
+                            ..SimOptions::default()
+                        };
+                        simulate_cycle(run, r, &skipper, &camera, dims, options)?;
+                        Ok(())
+                    },
+                )?;
+                let mut estimate = estimate;
+                // The start/end table's load comes before the first ray, the pipeline idle
+                // (as `simulate_with` adds it): exact, not sampled.
+                if let Some((_, load)) = crate::bricks::table_cost(config, order.len() as u64) {
+                    estimate.cycles += load;
+                }
+                memory_stats = Some(estimate.memory_stats.clone());
+                sampled = Some(estimate);
+                frame
+            }
+            None => {
+                let options = SimOptions {
+                    waveform: probes.waveform,
+                    command_trace: probes.command_trace,
+                    ..SimOptions::default()
+                };
+                let (result, stats) = simulate_cycle(run, r, &r.skipper(), &camera, dims, options)?;
+                memory_stats = Some(stats);
+                pipeline = Some(result.stats);
+                result.frame
+            }
+        },
     };
     let wall_seconds = start.elapsed().as_secs_f64();
     let stats = frame.stats();
@@ -595,11 +674,12 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         refinement_samples: stats.refinement_samples,
         ..Measurements::default()
     };
-    let frame_time_ns = match (run.model, &pipeline) {
-        (Model::Float, _) => None,
-        (Model::Step, _) => Some(m.steps as f64 * config.clock.step_time_ns),
-        (Model::Cycle, Some(s)) => Some(s.cycles as f64 * 1e3 / config.clock.frequency_mhz),
-        (Model::Cycle, None) => None,
+    let frame_time_ns = match (run.model, &pipeline, &sampled) {
+        (Model::Float, _, _) => None,
+        (Model::Step, _, _) => Some(m.steps as f64 * config.clock.step_time_ns),
+        (Model::Cycle, Some(s), _) => Some(s.cycles as f64 * 1e3 / config.clock.frequency_mhz),
+        (Model::Cycle, None, Some(e)) => Some(e.cycles as f64 * 1e3 / config.clock.frequency_mhz),
+        (Model::Cycle, None, None) => None,
     };
     m.frame_time_ns = frame_time_ns;
     m.fps = frame_time_ns.map(|ns| 1e9 / ns.max(1e-9));
@@ -614,6 +694,15 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         m.rays_terminated_early = s.rays_terminated_early;
         m.discarded_after_ert = Some(s.discarded_after_ert);
         m.stall_cycles = Some(s.stall_cycles);
+    }
+    if let (Some(e), Some(sampling)) = (&sampled, &run.sample) {
+        // The counts stay the functional model's (exact); the timing is the estimate.
+        m.cycles = Some(e.cycles);
+        m.cycles_ci95 = Some(e.cycles_ci95);
+        m.sampled = Some(true);
+        m.sample_rate = Some(sampling.rate);
+        m.discarded_after_ert = Some(e.discarded_after_ert);
+        m.stall_cycles = Some(e.stall_cycles);
     }
     if let Some(ms) = memory_stats.as_ref().filter(|ms| ms["row_hits"].is_u64()) {
         m.row_hits = ms["row_hits"].as_u64();
@@ -655,8 +744,11 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         stats,
         pipeline,
         memory_stats,
+        sampling: sampled,
         wall_seconds,
         samples_per_second: m.samples as f64 / wall_seconds.max(1e-12),
+        // Simulated cycles per second (sampled: the frame's estimated cycles per second, how
+        // fast the frame's timing was found).
         sim_cycles_per_second: m.cycles.map(|c| c as f64 / wall_seconds.max(1e-12)),
         leap_values,
         measurements: m,
@@ -673,47 +765,63 @@ pub fn ray_range_on(config: &HardwareConfig) -> bool {
     !(config.bricks.is_off() && config.clip.is_off() && config.geometry.is_off())
 }
 
+/// Simulates the run on a fresh memory of its kind (SDRAM or ideal), behind the block table's
+/// lookup stage when the renderer blocks; returns the result and the memory's statistics.
+fn simulate_cycle(
+    run: &RunDescription,
+    renderer: &FixedRenderer,
+    skipper: &ConfiguredSkipper,
+    camera: &Camera,
+    dims: [usize; 3],
+    options: SimOptions,
+) -> Result<(CycleResult, Value)> {
+    let config = &run.hardware;
+    match run.memory {
+        Memory::Sdram => {
+            let map = match &renderer.blocks {
+                Some(blocks) => AddressMap::blocked(&config.memory, dims, blocks.clone()),
+                None => AddressMap::new(&config.memory, dims),
+            };
+            let memory = SdramMemory::with_map(
+                &config.memory,
+                &config.sdram,
+                map,
+                config.clock.frequency_mhz,
+            );
+            simulate_memory(renderer, skipper, camera, memory, config, options)
+        }
+        Memory::Ideal { latency } => simulate_memory(
+            renderer,
+            skipper,
+            camera,
+            IdealMemory::new(latency),
+            config,
+            options,
+        ),
+    }
+}
+
 /// Simulates on `memory`, behind the block table's lookup stage when the renderer blocks;
 /// returns the result and the memory's statistics.
 fn simulate_memory<M: VoxelMemory>(
     renderer: &FixedRenderer,
+    skipper: &ConfiguredSkipper,
     camera: &Camera,
     memory: M,
     config: &HardwareConfig,
-    probes: Probes,
-) -> Result<(crate::arch::pipeline::CycleResult, Value)> {
+    options: SimOptions,
+) -> Result<(CycleResult, Value)> {
     match &renderer.blocks {
         Some(blocks) => {
             let latency = config.blocking.lookup_latency;
             let mut memory = BlockLookup::new(memory, blocks.clone(), latency);
-            let result = simulate_on(renderer, camera, &mut memory, config, probes)?;
+            let result = simulate_with(renderer, camera, skipper, &mut memory, config, options)?;
             Ok((result, memory.stats_json()))
         }
         None => {
             let mut memory = memory;
-            let result = simulate_on(renderer, camera, &mut memory, config, probes)?;
+            let result = simulate_with(renderer, camera, skipper, &mut memory, config, options)?;
             Ok((result, memory.stats_json()))
         }
     }
-}
-
-fn simulate_on<M: VoxelMemory>(
-    renderer: &FixedRenderer,
-    camera: &Camera,
-    memory: &mut M,
-    config: &HardwareConfig,
-    probes: Probes,
-) -> Result<crate::arch::pipeline::CycleResult> {
-    simulate_with(
-        renderer,
-        camera,
-        &renderer.skipper(),
-        memory,
-        config,
-        SimOptions {
-            skip_dead_cycles: true,
-            waveform: probes.waveform,
-            command_trace: probes.command_trace,
-        },
-    )
 }

@@ -265,6 +265,8 @@ pub struct Table {
     pub columns: Vec<String>,
     /// Cells (row, column) whose leaping map does not fit the default SRAM (run with more).
     pub raised_sram: BTreeSet<(usize, usize)>,
+    /// Cells (row, column) with a sampled simulation's estimate among their lines.
+    pub sampled: BTreeSet<(usize, usize)>,
     pub stand_ins: BTreeSet<String>,
     /// The command that made the table (a line under it), when known.
     pub made_by: Option<String>,
@@ -316,8 +318,8 @@ pub fn build(
     let mut lines = lines.to_vec();
     lines.sort_by_key(|l| field_text(l, "key").unwrap_or_default());
     type Key = Vec<(i64, String)>;
-    /// Sum, count, and whether any line ran with the SRAM raised.
-    type Cell = (f64, u32, bool);
+    /// Sum, count, whether any line ran with the SRAM raised, whether any line is sampled.
+    type Cell = (f64, u32, bool, bool);
     let mut cells: BTreeMap<(Key, (i64, String)), Cell> = BTreeMap::new();
     let mut stand_ins = BTreeSet::new();
     for line in &lines {
@@ -336,10 +338,16 @@ pub fn build(
         if line.get("stand_in") == Some(&Value::Bool(true)) {
             stand_ins.extend(field_text(line, "dataset"));
         }
-        let cell = cells.entry((row, column)).or_insert((0.0, 0, false));
+        let cell = cells.entry((row, column)).or_insert((0.0, 0, false, false));
         cell.0 += value;
         cell.1 += 1;
         cell.2 |= raised;
+        // Only timing is estimated: steps, samples and structure figures stay exact.
+        let counted = matches!(
+            metric,
+            Metric::Steps | Metric::Samples | Metric::Skippable | Metric::PositionsCut
+        );
+        cell.3 |= !counted && line.get("sampled") == Some(&Value::Bool(true));
     }
     let row_keys: Vec<Key> = cells
         .keys()
@@ -354,6 +362,7 @@ pub fn build(
         .into_iter()
         .collect();
     let mut raised_sram = BTreeSet::new();
+    let mut sampled = BTreeSet::new();
     let rows = row_keys
         .iter()
         .enumerate()
@@ -362,12 +371,17 @@ pub fn build(
                 .iter()
                 .enumerate()
                 .map(|(ci, c)| {
-                    cells.get(&(r.clone(), c.clone())).map(|&(sum, n, raised)| {
-                        if raised {
-                            raised_sram.insert((ri, ci));
-                        }
-                        sum / n as f64
-                    })
+                    cells
+                        .get(&(r.clone(), c.clone()))
+                        .map(|&(sum, n, raised, estimate)| {
+                            if raised {
+                                raised_sram.insert((ri, ci));
+                            }
+                            if estimate {
+                                sampled.insert((ri, ci));
+                            }
+                            sum / n as f64
+                        })
                 })
                 .collect();
             let labels = row_fields
@@ -388,6 +402,7 @@ pub fn build(
             .map(|(_, t)| display(column_field, t))
             .collect(),
         raised_sram,
+        sampled,
         stand_ins,
         made_by: None,
     })
@@ -477,7 +492,12 @@ impl Table {
                         } else {
                             ""
                         };
-                        format!("{}{mark}", formats[ci].write(*v))
+                        let approx = if self.sampled.contains(&(ri, ci)) {
+                            "≈ "
+                        } else {
+                            ""
+                        };
+                        format!("{approx}{}{mark}", formats[ci].write(*v))
                     }
                     None => "–".into(),
                 })
@@ -496,6 +516,9 @@ impl Table {
         }
         if !self.raised_sram.is_empty() {
             s += "\n\\* the occupancy map does not fit the default SRAM (occupancy.sram_bits); run with the SRAM raised.\n";
+        }
+        if !self.sampled.is_empty() {
+            s += "\n≈ estimated by sampled simulation (docs/sampling.md): the timing figures of these cells are estimates with a 95 % interval per frame (`cycles_ci95` in the results).\n";
         }
         if !self.stand_ins.is_empty() {
             s += "\n† stand-in dataset (see docs/results.md): not the published data.\n";

@@ -9,6 +9,7 @@ pub mod compositing_buffer;
 pub mod overtaking_fifo;
 pub mod pipeline;
 pub mod ray_queue;
+pub mod sampling;
 pub mod sdram;
 pub mod sdram_module;
 pub mod skip_unit;

@@ -143,6 +143,57 @@ pub struct SimOptions<'a> {
     /// Write every memory command of the trace's cycle window (nothing with a memory model
     /// without commands). The simulation also tells the trace the cycle it ended at.
     pub command_trace: Option<&'a mut CommandTrace>,
+    /// Simulate only these rays (pixel indices), in this issue order, instead of the whole
+    /// frame in tile order: a segment of a sampled simulation (`arch::sampling`). The result's
+    /// frame is then a strip of the subset's pixels in this order (width = rays, height 1).
+    pub rays: Option<&'a [usize]>,
+    /// Snapshots at given ray admissions (unit boundaries of a sampled simulation).
+    pub checkpoints: Option<&'a mut Checkpoints>,
+}
+
+/// Where a simulation takes snapshots: when the ray at each position of the issue order enters
+/// the ray queue (a position equal to the number of rays: when the last pixel is written).
+/// Admission times telescope: the cycles between the admissions of rays a and b depend only on
+/// the rays before b, so a segment that stops at b's admission measures them exactly as the
+/// whole frame would, given the same state at a.
+#[derive(Debug, Default)]
+pub struct Checkpoints {
+    /// Positions in the issue order, ascending.
+    pub at: Vec<usize>,
+    /// End the simulation at the last checkpoint instead of running to the frame's end.
+    pub stop_at_last: bool,
+    /// One snapshot per position of `at`, in order.
+    pub taken: Vec<Checkpoint>,
+}
+
+/// The pipeline's and the memory's counters at one ray admission.
+#[derive(Clone, Debug)]
+pub struct Checkpoint {
+    /// The cycle of the admission (cycles before it are fully accounted in `stats`).
+    pub cycle: u64,
+    pub stats: CycleStats,
+    /// The memory's statistics (`VoxelMemory::stats_json`).
+    pub memory: serde_json::Value,
+}
+
+impl Checkpoints {
+    fn due(&self, position: usize) -> bool {
+        self.at.get(self.taken.len()) == Some(&position)
+    }
+
+    fn take<M: VoxelMemory>(&mut self, now: u64, stats: &CycleStats, memory: &M) {
+        let mut stats = stats.clone();
+        stats.cycles = now;
+        self.taken.push(Checkpoint {
+            cycle: now,
+            stats,
+            memory: memory.stats_json(),
+        });
+    }
+
+    fn complete(&self) -> bool {
+        self.taken.len() == self.at.len()
+    }
 }
 
 impl Default for SimOptions<'_> {
@@ -151,6 +202,8 @@ impl Default for SimOptions<'_> {
             skip_dead_cycles: true,
             waveform: None,
             command_trace: None,
+            rays: None,
+            checkpoints: None,
         }
     }
 }
@@ -179,6 +232,8 @@ pub fn simulate<S: SpaceSkipper, M: VoxelMemory>(
             skip_dead_cycles,
             waveform,
             command_trace: None,
+            rays: None,
+            checkpoints: None,
         },
     )
 }
@@ -196,11 +251,21 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
         skip_dead_cycles,
         mut waveform,
         mut command_trace,
+        rays,
+        mut checkpoints,
     } = options;
     let mut issued_commands: Vec<IssuedCommand> = Vec::new();
     let (w, h) = (camera.width, camera.height);
-    let ray_count = (w * h) as usize;
-    let order = tile_order(w, h, config.ray_queue.tile);
+    // A ray's id indexes the per-ray state: its pixel for the whole frame, its position in
+    // `rays` for a subset.
+    let (ray_count, order) = match rays {
+        None => ((w * h) as usize, tile_order(w, h, config.ray_queue.tile)),
+        Some(rays) => (rays.len(), (0..rays.len()).collect()),
+    };
+    let pixel_of = |ray_id: usize| rays.map_or(ray_id, |r| r[ray_id]);
+    // Rays admitted to the ray queue so far (position in the issue order of the next one).
+    let mut admitted = 0usize;
+    let mut stopped = false;
     let mut pixels = vec![[0u8; 4]; ray_count];
     let mut records = vec![RayRecord::default(); ray_count];
     let mut progress = vec![RayProgress::default(); ray_count];
@@ -276,7 +341,7 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
     };
 
     let mut probe = Probe::default();
-    while retired < ray_count {
+    'clock: while retired < ray_count {
         let mut moved = false;
         let retired_before = retired;
         let mut ert_event = false;
@@ -440,7 +505,8 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
             while in_setup.len() < setup_units && next_setup < ray_count {
                 let ray_id = order[next_setup];
                 next_setup += 1;
-                let (px, py) = (ray_id as u32 % w, ray_id as u32 / w);
+                let pixel = pixel_of(ray_id) as u32;
+                let (px, py) = (pixel % w, pixel / w);
                 let ray = renderer.setup(camera, px, py);
                 let cost = setup_cycles(config, &ray);
                 if let Some(r) = stats.ray_range.as_mut() {
@@ -456,6 +522,14 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
                 break;
             }
             let Some(free) = queue.free_slot() else { break };
+            if let Some(c) = checkpoints.as_deref_mut().filter(|c| c.due(admitted)) {
+                c.take(now, &stats, memory);
+                if c.stop_at_last && c.complete() {
+                    stopped = true;
+                    break 'clock;
+                }
+            }
+            admitted += 1;
             in_setup.pop_front();
             moved = true;
             records[ray_id] = RayRecord {
@@ -591,6 +665,25 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
         now += span;
     }
     stats.cycles = now;
+    let frame_size = match rays {
+        None => (w, h),
+        Some(_) => (ray_count as u32, 1),
+    };
+    if let Some(c) = checkpoints.filter(|c| c.due(ray_count)) {
+        c.take(now, &stats, memory);
+    }
+    if stopped {
+        // A segment ended at its last checkpoint: rays still in flight, nothing to check.
+        return Ok(CycleResult {
+            frame: Frame {
+                width: frame_size.0,
+                height: frame_size.1,
+                pixels,
+                rays: records,
+            },
+            stats,
+        });
+    }
     if let Some(r) = stats.ray_range.as_mut() {
         let totals = RayRangeStats::from_records(&records);
         r.positions_in_box = totals.positions_in_box;
@@ -627,8 +720,8 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
     }
     Ok(CycleResult {
         frame: Frame {
-            width: w,
-            height: h,
+            width: frame_size.0,
+            height: frame_size.1,
             pixels,
             rays: records,
         },

@@ -9,6 +9,7 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
+use crate::arch::sampling::Sampling;
 use crate::camera::{parse_image_size, Projection};
 use crate::config::{self, HardwareConfig};
 use crate::dynamic::{MapMode, Sequence};
@@ -55,6 +56,11 @@ pub struct ExperimentFile {
     /// (docs/experiments.md, "Sequences"). Written out only when given.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sequence: Option<SequenceAxis>,
+    /// Sampled simulation of the cycle-model runs at this rate in (0, 1] (docs/sampling.md):
+    /// their timing is estimated, with a 95 % interval, and their keys differ from the exact
+    /// runs'. Written out only when given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sample: Option<f64>,
 }
 
 /// `[sequence]`: the time axis of a dynamic experiment.
@@ -519,6 +525,18 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
             return Err(bad("tf", format!("`{tf}`: expected `zero` or `class`")));
         }
     }
+    let sample = experiment
+        .sample
+        .map(|rate| Sampling::new(rate, "value").map_err(|e| bad("sample", e.to_string())))
+        .transpose()?;
+    if sample.is_some() && experiment.sequence.is_some() {
+        return Err(bad(
+            "sample",
+            "a sequence's frames are simulated exactly; sampling applies to experiments \
+             without [sequence]"
+                .into(),
+        ));
+    }
     // The time axis: checked before anything is loaded.
     let sequence = match &experiment.sequence {
         None => None,
@@ -815,6 +833,7 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
         size,
         projection,
         sequence,
+        sample,
         axes,
         groups,
         count,
@@ -837,6 +856,8 @@ pub struct Plan {
     size: (u32, u32),
     projection: Projection,
     sequence: Option<(SequenceAxis, Vec<MapMode>)>,
+    /// Sampled simulation of the cycle-model runs.
+    sample: Option<Sampling>,
     axes: Vec<(String, Vec<toml::Value>)>,
     /// Axis indices advancing together (a zip group or one axis), in product order.
     groups: Vec<Vec<usize>>,
@@ -1107,6 +1128,7 @@ impl Plan {
                                         view,
                                         projection: self.projection,
                                         size: self.size,
+                                        sample: self.sample.filter(|_| model == Model::Cycle),
                                         ..RunDescription::new(name, tf, model, config.clone())
                                     };
                                     let spec = RunSpec {
@@ -1202,6 +1224,10 @@ fn canonical_run(run: &RunDescription) -> serde_json::Value {
     }
     if run.memory != defaults.memory {
         obj.insert("memory".into(), serde_json::json!(run.memory));
+    }
+    // Sampled runs are other runs than the exact ones: they never share a key.
+    if let Some(sampling) = &run.sample {
+        obj.insert("sample".into(), serde_json::json!(sampling));
     }
     canonical
 }

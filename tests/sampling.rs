@@ -1,0 +1,167 @@
+//! Sampled simulation (docs/sampling.md): every unit sampled is the exact simulation, the
+//! estimate does not depend on the thread count, the interval narrows with the rate, the image
+//! stays exact, and bad rates are refused.
+
+use std::process::Command;
+
+use vizsim::arch::sampling::Sampling;
+use vizsim::config::HardwareConfig;
+use vizsim::experiment::spec::run_key;
+use vizsim::run::{self, Model, Probes, RunDescription, RunReport};
+
+/// A leaping frame of the metaballs phantom: 96×96 rays, 72 units of 128.
+fn description(sample: Option<f64>) -> RunDescription {
+    let mut hardware = HardwareConfig::default_config();
+    hardware.occupancy.subcube = 4;
+    RunDescription {
+        view: "orbit:5/72".into(),
+        size: (96, 96),
+        sample: sample.map(|rate| Sampling::new(rate, "test").unwrap()),
+        ..RunDescription::new("phantom:metaballs:48", "class", Model::Cycle, hardware)
+    }
+}
+
+fn simulate(sample: Option<f64>) -> RunReport {
+    run::run(&description(sample), None, Probes::default()).unwrap()
+}
+
+#[test]
+fn sampling_every_unit_gives_the_exact_cycles_and_image() {
+    let exact = simulate(None);
+    let sampled = simulate(Some(1.0));
+    assert_eq!(sampled.measurements.cycles, exact.measurements.cycles);
+    assert_eq!(sampled.measurements.cycles_ci95, Some(0.0));
+    assert_eq!(sampled.measurements.sampled, Some(true));
+    assert_eq!(
+        sampled.measurements.stall_cycles,
+        exact.measurements.stall_cycles
+    );
+    assert_eq!(sampled.measurements.row_hits, exact.measurements.row_hits);
+    assert_eq!(sampled.frame.pixels, exact.frame.pixels);
+    // Exact runs carry no sampling fields.
+    assert_eq!(exact.measurements.cycles_ci95, None);
+    assert_eq!(exact.measurements.sampled, None);
+}
+
+#[test]
+fn a_sampled_run_has_the_exact_image_and_counts_and_a_plausible_estimate() {
+    let exact = simulate(None);
+    let sampled = simulate(Some(0.2));
+    let estimate = sampled.sampling.as_ref().expect("sampled report");
+    assert!(estimate.measured_units < estimate.units, "{estimate:?}");
+    assert_eq!(sampled.frame.pixels, exact.frame.pixels);
+    // The counts are the functional model's (exact), not estimates.
+    let functional = run::run(
+        &RunDescription {
+            model: Model::Step,
+            sample: None,
+            ..description(None)
+        },
+        None,
+        Probes::default(),
+    )
+    .unwrap();
+    assert_eq!(sampled.measurements.steps, functional.measurements.steps);
+    assert_eq!(
+        sampled.measurements.samples,
+        functional.measurements.samples
+    );
+    let (estimated, true_cycles) = (
+        sampled.measurements.cycles.unwrap() as f64,
+        exact.measurements.cycles.unwrap() as f64,
+    );
+    // Not a coverage claim (docs/sampling.md has those): the estimate is in the right range.
+    assert!(
+        (estimated - true_cycles).abs() < 0.1 * true_cycles,
+        "{estimated} vs {true_cycles}"
+    );
+}
+
+#[test]
+fn the_estimate_does_not_depend_on_the_thread_count() {
+    let on = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| simulate(Some(0.15)))
+            .measurements
+    };
+    assert_eq!(on(1), on(3));
+}
+
+#[test]
+fn the_interval_narrows_as_the_rate_grows() {
+    let ci = |rate: f64| simulate(Some(rate)).measurements.cycles_ci95.unwrap();
+    let (low, middle, all) = (ci(0.1), ci(0.5), ci(1.0));
+    assert!(low > middle && middle > all, "{low} {middle} {all}");
+    assert_eq!(all, 0.0);
+}
+
+#[test]
+fn sampled_and_exact_runs_never_share_a_key() {
+    let exact = description(None);
+    let sampled = description(Some(0.05));
+    assert_ne!(run_key(&exact), run_key(&sampled));
+    assert_ne!(run_key(&sampled), run_key(&description(Some(0.1))));
+    // The exact description serialises as before the field existed.
+    let json = serde_json::to_value(&exact).unwrap();
+    assert!(json.get("sample").is_none());
+}
+
+#[test]
+fn the_step_model_refuses_sampling() {
+    let run = RunDescription {
+        model: Model::Step,
+        ..description(Some(0.1))
+    };
+    let Err(error) = run::run(&run, None, Probes::default()) else {
+        panic!("a sampled step-model run was accepted");
+    };
+    assert!(error.to_string().contains("cycle model"), "{error}");
+}
+
+#[test]
+fn bad_sample_rates_are_refused_naming_the_flag() {
+    for rate in ["0", "-0.1", "1.5", "NaN", "inf", "abc", ""] {
+        let out = Command::new(env!("CARGO_BIN_EXE_vizsim"))
+            .args([
+                "sim",
+                "--dataset",
+                "phantom:sphere:16",
+                "--size",
+                "16x16",
+                "--sample",
+                rate,
+            ])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "--sample {rate} accepted");
+        assert!(stderr.contains("--sample"), "--sample {rate}: {stderr}");
+        assert!(!stderr.contains("panicked"), "--sample {rate}: {stderr}");
+    }
+}
+
+#[test]
+fn an_experiment_with_a_bad_rate_is_refused_naming_the_field() {
+    let dir = std::env::temp_dir().join(format!("vizsim-sampling-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("bad.toml");
+    std::fs::write(
+        &file,
+        "name = \"bad\"\ndatasets = [\"phantom:sphere:16\"]\nmodes = [\"none\"]\n\
+         models = [\"cycle\"]\nsample = 1.5\n[frames]\norbit = 1\nsize = \"16x16\"\n",
+    )
+    .unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args(["sweep", file.to_str().unwrap(), "--out"])
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("sample"), "{stderr}");
+    assert!(!dir.join("out").join("results.jsonl").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
