@@ -672,17 +672,18 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
     if let Some(c) = checkpoints.filter(|c| c.due(ray_count)) {
         c.take(now, &stats, memory);
     }
+    let result = |pixels, records, stats| CycleResult {
+        frame: Frame {
+            width: frame_size.0,
+            height: frame_size.1,
+            pixels,
+            rays: records,
+        },
+        stats,
+    };
     if stopped {
         // A segment ended at its last checkpoint: rays still in flight, nothing to check.
-        return Ok(CycleResult {
-            frame: Frame {
-                width: frame_size.0,
-                height: frame_size.1,
-                pixels,
-                rays: records,
-            },
-            stats,
-        });
+        return Ok(result(pixels, records, stats));
     }
     if let Some(r) = stats.ray_range.as_mut() {
         let totals = RayRangeStats::from_records(&records);
@@ -718,15 +719,7 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
             ray_count
         )));
     }
-    Ok(CycleResult {
-        frame: Frame {
-            width: frame_size.0,
-            height: frame_size.1,
-            pixels,
-            rays: records,
-        },
-        stats,
-    })
+    Ok(result(pixels, records, stats))
 }
 
 /// Whether ray setup traverses the brick grid (its cycles are counted).
