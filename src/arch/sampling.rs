@@ -91,6 +91,24 @@ impl Sampling {
     }
 }
 
+impl Sampling {
+    /// The share of a frame of `rays` rays that a sampled run simulates in detail (sampled
+    /// units with their warm-ups, the first and the last unit): what a dry run's time estimate
+    /// scales the cycle model's cost by. The units' places vary with the run, which changes
+    /// the share only where warm-ups merge; the plan of seed 0 stands for them.
+    pub fn simulated_share(&self, rays: usize) -> f64 {
+        if rays == 0 {
+            return 0.0;
+        }
+        let simulated: usize = plan(rays, self, 0)
+            .segments
+            .iter()
+            .map(|s| s.rays.len())
+            .sum();
+        simulated as f64 / rays as f64
+    }
+}
+
 /// What a sampled simulation measured and estimated.
 #[derive(Clone, Debug, Serialize)]
 pub struct SampledEstimate {
