@@ -5,8 +5,6 @@
 //! released to the compositing stages only when it has arrived and is its ray's oldest
 //! outstanding sample; rays take turns (round-robin) when several could release.
 
-use std::collections::VecDeque;
-
 use crate::functional::leaping::SampleValue;
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -19,26 +17,44 @@ pub struct BufferedSample {
     pub arrived: bool,
 }
 
+/// No entry (end of a ray's list).
+const NONE: u32 = u32::MAX;
+
+/// An entry and its place in its ray's list.
+#[derive(Clone, Copy, Debug, Default)]
+struct Entry {
+    sample: BufferedSample,
+    /// The ray's next entry in issue order, or `NONE`.
+    next: u32,
+    /// The entry is its ray's oldest outstanding one.
+    head: bool,
+}
+
 pub struct CompositingBuffer {
-    entries: Vec<BufferedSample>,
+    entries: Vec<Entry>,
     free: Vec<u32>,
-    /// Per ray, its entry ids in issue (= k) order.
-    per_ray: Vec<VecDeque<u32>>,
+    /// Per ray, its oldest and newest entry ids (`NONE` when it holds none): each ray's entries
+    /// are a list in issue (= k) order through `Entry::next`.
+    per_ray: Vec<(u32, u32)>,
     /// Rays holding entries, in the order they first reserved one.
     active: Vec<usize>,
     /// Round-robin position in `active`.
     next: usize,
+    /// Rays whose oldest entry has arrived: when none has, nothing can be released and the
+    /// round-robin scan is skipped.
+    releasable: usize,
     pub peak: usize,
 }
 
 impl CompositingBuffer {
     pub fn new(capacity: usize, rays: usize) -> CompositingBuffer {
         CompositingBuffer {
-            entries: vec![BufferedSample::default(); capacity],
+            entries: vec![Entry::default(); capacity],
             free: (0..capacity as u32).rev().collect(),
-            per_ray: vec![VecDeque::new(); rays],
+            per_ray: vec![(NONE, NONE); rays],
             active: Vec::new(),
             next: 0,
+            releasable: 0,
             peak: 0,
         }
     }
@@ -55,13 +71,13 @@ impl CompositingBuffer {
         self.len() == 0
     }
 
-    /// Reserves an entry for a sample just issued; returns its id (the memory tag), or None
-    /// when the buffer is full.
     /// The entry id the next `reserve` will return.
     pub fn next_free(&self) -> Option<u32> {
         self.free.last().copied()
     }
 
+    /// Reserves an entry for a sample just issued; returns its id (the memory tag), or None
+    /// when the buffer is full.
     pub fn reserve(
         &mut self,
         ray_id: usize,
@@ -70,41 +86,55 @@ impl CompositingBuffer {
         value: SampleValue,
     ) -> Option<u32> {
         let id = self.free.pop()?;
-        self.entries[id as usize] = BufferedSample {
-            ray_id,
-            k,
-            pos,
-            value,
-            arrived: false,
+        let (head, tail) = self.per_ray[ray_id];
+        let first = head == NONE;
+        self.entries[id as usize] = Entry {
+            sample: BufferedSample {
+                ray_id,
+                k,
+                pos,
+                value,
+                arrived: false,
+            },
+            next: NONE,
+            head: first,
         };
-        let queue = &mut self.per_ray[ray_id];
-        if queue.is_empty() {
+        if first {
             self.active.push(ray_id);
+            self.per_ray[ray_id] = (id, id);
+        } else {
+            self.entries[tail as usize].next = id;
+            self.per_ray[ray_id].1 = id;
         }
-        queue.push_back(id);
         self.peak = self.peak.max(self.len());
         Some(id)
     }
 
     /// All words of the sample with this entry id have arrived.
     pub fn arrive(&mut self, id: u32) {
-        self.entries[id as usize].arrived = true;
+        let entry = &mut self.entries[id as usize];
+        entry.sample.arrived = true;
+        self.releasable += entry.head as usize;
     }
 
     /// Releases one sample that has arrived and is its ray's oldest outstanding one.
     pub fn release(&mut self) -> Option<BufferedSample> {
+        if self.releasable == 0 {
+            return None;
+        }
         let n = self.active.len();
         let next = self.next.min(n);
         let at = (next..n).chain(0..next).find(|&i| {
-            let ray = self.active[i];
-            self.per_ray[ray]
-                .front()
-                .is_some_and(|&id| self.entries[id as usize].arrived)
+            let head = self.per_ray[self.active[i]].0;
+            self.entries[head as usize].sample.arrived
         })?;
         let ray = self.active[at];
-        let id = self.per_ray[ray].pop_front()?;
+        let id = self.per_ray[ray].0;
+        let released = self.entries[id as usize];
         self.free.push(id);
-        if self.per_ray[ray].is_empty() {
+        self.releasable -= 1;
+        if released.next == NONE {
+            self.per_ray[ray] = (NONE, NONE);
             self.active.remove(at);
             self.next = if self.active.is_empty() {
                 0
@@ -112,8 +142,12 @@ impl CompositingBuffer {
                 at % self.active.len()
             };
         } else {
+            self.per_ray[ray].0 = released.next;
+            let head = &mut self.entries[released.next as usize];
+            head.head = true;
+            self.releasable += head.sample.arrived as usize;
             self.next = (at + 1) % n;
         }
-        Some(self.entries[id as usize])
+        Some(released.sample)
     }
 }

@@ -764,7 +764,7 @@ fn issue<S: SpaceSkipper, M: VoxelMemory>(
     if queue.occupancy() == 0 {
         return Err(Stall::RayQueueEmpty);
     }
-    let Some(index) = queue.select(|_| true) else {
+    let Some(index) = queue.select() else {
         return Err(if waiting_words {
             Stall::DistanceWord
         } else if *waiting_samples > 0 {

@@ -33,15 +33,34 @@ impl RaySlot {
 
 pub struct RayQueue {
     slots: Vec<Option<RaySlot>>,
+    /// Per slot, its issue key: the ray's position index k when it may issue (present, not
+    /// busy, not finished), else `NOT_READY`. Selection scans this compact array instead of
+    /// the slots (a slot is some 300 bytes).
+    keys: Vec<u64>,
+    /// Slots handed out by `slot_mut` since the last selection: their keys are recomputed
+    /// before the next one.
+    stale: Vec<usize>,
     occupied: usize,
     selection: RaySelection,
     next_round_robin: usize,
+}
+
+/// The key of a slot that cannot issue.
+const NOT_READY: u64 = u64::MAX;
+
+fn key_of(slot: &Option<RaySlot>) -> u64 {
+    match slot {
+        Some(s) if !s.busy && !s.finished() => s.k,
+        _ => NOT_READY,
+    }
 }
 
 impl RayQueue {
     pub fn new(rays: usize, selection: RaySelection) -> RayQueue {
         RayQueue {
             slots: vec![None; rays],
+            keys: vec![NOT_READY; rays],
+            stale: Vec::new(),
             occupied: 0,
             selection,
             next_round_robin: 0,
@@ -67,7 +86,9 @@ impl RayQueue {
         self.slots[index].as_ref()
     }
 
+    /// The slot to change (its issue key is recomputed before the next selection).
     pub fn slot_mut(&mut self, index: usize) -> Option<&mut RaySlot> {
+        self.stale.push(index);
         self.slots[index].as_mut()
     }
 
@@ -79,34 +100,50 @@ impl RayQueue {
     pub fn admit(&mut self, index: usize, slot: RaySlot) {
         debug_assert!(self.slots[index].is_none());
         self.slots[index] = Some(slot);
+        self.keys[index] = key_of(&self.slots[index]);
         self.occupied += 1;
     }
 
     /// Takes a ray out of its slot.
     pub fn remove(&mut self, index: usize) -> Option<RaySlot> {
         let slot = self.slots[index].take();
+        self.keys[index] = NOT_READY;
         self.occupied -= slot.is_some() as usize;
         slot
     }
 
-    /// The slot to issue from this cycle among those `eligible` accepts (ready, not busy, not
+    /// The slot to issue from this cycle among the ready ones (present, not busy, not
     /// finished), by the configured policy. Round-robin advances only when a slot issues.
-    pub fn select(&self, eligible: impl Fn(&RaySlot) -> bool) -> Option<usize> {
-        let n = self.slots.len();
-        let ready = |i: usize| {
-            self.slots[i]
-                .as_ref()
-                .is_some_and(|s| !s.busy && !s.finished() && eligible(s))
-        };
-        // Slots from the round-robin pointer on, wrapping (no division per slot).
-        let from_pointer = || (self.next_round_robin..n).chain(0..self.next_round_robin);
+    pub fn select(&mut self) -> Option<usize> {
+        for i in self.stale.drain(..) {
+            self.keys[i] = key_of(&self.slots[i]);
+        }
+        let n = self.keys.len();
+        let start = self.next_round_robin;
+        let keys = &self.keys;
         match self.selection {
-            RaySelection::RoundRobin => from_pointer().find(|&i| ready(i)),
-            RaySelection::LaggingFirst => from_pointer()
-                .filter(|&i| ready(i))
-                .min_by_key(|&i| self.slots[i].as_ref().map(|s| s.k)),
+            RaySelection::RoundRobin => (start..n).chain(0..start).find(|&i| keys[i] != NOT_READY),
+            // The least k; among equals, the first from the round-robin pointer on.
+            RaySelection::LaggingFirst => {
+                let least = |range: std::ops::Range<usize>| {
+                    range.fold((NOT_READY, usize::MAX), |best, i| {
+                        if keys[i] < best.0 {
+                            (keys[i], i)
+                        } else {
+                            best
+                        }
+                    })
+                };
+                let (after, at_after) = least(start..n);
+                let (before, at_before) = least(0..start);
+                match (after, before) {
+                    (NOT_READY, NOT_READY) => None,
+                    _ if before < after => Some(at_before),
+                    _ => Some(at_after),
+                }
+            }
             RaySelection::OldestFirst => (0..n)
-                .filter(|&i| ready(i))
+                .filter(|&i| keys[i] != NOT_READY)
                 .min_by_key(|&i| self.slots[i].as_ref().map(|s| (s.admitted, s.ray_id))),
         }
     }
@@ -126,6 +163,7 @@ impl RayQueue {
         if let Some(s) = self.slots[index].as_mut() {
             s.terminated = true;
         }
+        self.keys[index] = NOT_READY;
         Some(index)
     }
 }
