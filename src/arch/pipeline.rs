@@ -515,7 +515,9 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
                 }
                 in_setup.push_back((ray_id, ray, now + cost));
             }
-            let Some(&(ray_id, ray, ready)) = in_setup.front() else {
+            // Only the ready cycle is read here: the ray (some 200 bytes) is moved out when it
+            // is admitted, not copied every cycle it waits.
+            let Some(&(_, _, ready)) = in_setup.front() else {
                 break;
             };
             if ready > now {
@@ -530,7 +532,7 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
                 }
             }
             admitted += 1;
-            in_setup.pop_front();
+            let (ray_id, ray, _) = in_setup.pop_front().expect("the front was read above");
             moved = true;
             records[ray_id] = RayRecord {
                 hit: ray.samples > 0,
