@@ -58,6 +58,24 @@ pub struct HardwareConfig {
     pub iso: IsoConfig,
 }
 
+impl HardwareConfig {
+    /// Whether the cycle model's timing can depend on the transfer function: through early ray
+    /// termination (when rays stop), leaping with any structure (which positions are sampled),
+    /// bounding bricks (where rays start and end), blocking (which blocks the memory holds) or
+    /// iso mode (where rays stop). Without them every ray samples every position it reaches
+    /// and nothing looks at a sample's value before it is composited, so runs that differ only
+    /// in the transfer function take the same cycles, stalls and memory counts: a sweep
+    /// reuses them (`experiment::sweep`).
+    pub fn timing_depends_on_transfer_function(&self) -> bool {
+        self.compositing.ert
+            || self.occupancy.subcube > 0
+            || self.occupancy.structure != LeapStructure::Map
+            || !self.bricks.is_off()
+            || self.blocking.enabled
+            || self.iso.enabled
+    }
+}
+
 /// `[blocking]`: the volume memory holds only the active blocks of `block_size`³ voxels, each
 /// stored with a one-voxel border in a slot; the address generator finds a sample's slot in an
 /// on-chip indirection table (block index → slot), which costs `lookup_latency` cycles.

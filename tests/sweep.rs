@@ -691,3 +691,69 @@ fn repeated_values_empty_exclusions_and_left_out_runs_are_named() {
         "{left_out}"
     );
 }
+
+/// A cycle run without ERT, leaping, bricks, blocking or iso takes the timing of the same run
+/// with another transfer function instead of simulating: its line must be the one simulating
+/// writes. The same runs swept one transfer function at a time (nothing to reuse) must give
+/// the same lines byte for byte.
+#[test]
+fn cycle_runs_that_differ_only_in_the_transfer_function_reuse_the_timing_exactly() {
+    let dir = temp_dir("reuse");
+    let text = |tf: &str| {
+        format!(
+            r#"
+name = "ci-reuse"
+datasets = ["phantom:metaballs:32"]
+tf = {tf}
+modes = ["none", "ert"]
+models = ["cycle"]
+[frames]
+orbit = 72
+select = [0, 7]
+size = "24x24"
+"#
+        )
+    };
+    let both = dir.join("both");
+    std::fs::create_dir_all(&both).unwrap();
+    let exp = both.join("exp.toml");
+    std::fs::write(&exp, text(r#"["zero", "class"]"#)).unwrap();
+    let out = dir.join("both-out");
+    let r = vizsim(&[
+        "sweep",
+        exp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--threads",
+        "1",
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let said = String::from_utf8_lossy(&r.stdout);
+    // One thread: the two 'none' frames of the transfer function swept second reuse; the 'ert'
+    // runs never do.
+    assert!(
+        said.contains("2 cycle runs took the timing"),
+        "the sweep says what it reused: {said}"
+    );
+    let mut separate = Vec::new();
+    for tf in ["zero", "class"] {
+        let sub = dir.join(tf);
+        std::fs::create_dir_all(&sub).unwrap();
+        let exp = sub.join("exp.toml");
+        std::fs::write(&exp, text(&format!(r#"["{tf}"]"#))).unwrap();
+        let out = dir.join(format!("{tf}-out"));
+        let r = vizsim(&[
+            "sweep",
+            exp.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        assert!(!String::from_utf8_lossy(&r.stdout).contains("took the timing"));
+        separate.extend(sorted_lines(&out.join("results.jsonl")));
+    }
+    separate.sort();
+    assert_eq!(separate.len(), 8);
+    assert_eq!(sorted_lines(&out.join("results.jsonl")), separate);
+    let _ = std::fs::remove_dir_all(&dir);
+}

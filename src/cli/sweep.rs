@@ -131,6 +131,13 @@ pub fn run(args: SweepArgs) -> Result<()> {
         summary.already_done,
         out.join(experiment::store::RESULTS).display()
     );
+    if summary.timings_reused > 0 {
+        println!(
+            "  {} cycle runs took the timing of the same run with another transfer function \
+             (no ERT, leaping, bricks, blocking or iso: their cycles cannot differ)",
+            summary.timings_reused
+        );
+    }
     Ok(())
 }
 

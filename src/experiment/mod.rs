@@ -51,15 +51,30 @@ impl Shard {
 /// Runs one frame of a prepared group through the one run path and returns its result line:
 /// where the run sits in the experiment, then the run's measurements.
 fn run_frame(run: &RunSpec, prepared: &Prepared, experiment: &str) -> Result<Value> {
+    let measured = measure_frame(run, prepared)?;
+    Ok(result_line(run, experiment, prepared, measured))
+}
+
+/// The run's measurements (the result line's fields after its identity).
+fn measure_frame(run: &RunSpec, prepared: &Prepared) -> Result<serde_json::Map<String, Value>> {
     let report = run::execute(&run.run, prepared, Probes::default())?;
-    let mut line = identity_line(run, experiment, &report.transfer_function);
-    let obj = line.as_object_mut().expect("object");
-    if let Value::Object(measured) = serde_json::to_value(&report.measurements)
-        .map_err(|e| Error::Invalid(format!("result of run {}: {e}", run.key)))?
-    {
-        obj.extend(measured);
+    match serde_json::to_value(&report.measurements) {
+        Ok(Value::Object(measured)) => Ok(measured),
+        Ok(_) => Ok(serde_json::Map::new()),
+        Err(e) => Err(Error::Invalid(format!("result of run {}: {e}", run.key))),
     }
-    Ok(line)
+}
+
+/// A result line: the run's identity, then its measurements.
+fn result_line(
+    run: &RunSpec,
+    experiment: &str,
+    prepared: &Prepared,
+    measured: serde_json::Map<String, Value>,
+) -> Value {
+    let mut line = identity_line(run, experiment, &prepared.transfer_function);
+    line.as_object_mut().expect("object").extend(measured);
+    line
 }
 
 /// Where a run sits in the experiment: the first fields of its result line.
@@ -126,6 +141,67 @@ fn step_line(run: &RunSpec, view: &StepView, experiment: &str, clock_mhz: f64) -
         obj.insert(field.into(), value);
     }
     Ok(line)
+}
+
+/// Measurements of exact cycle runs whose timing cannot depend on the transfer function
+/// (`HardwareConfig::timing_depends_on_transfer_function`), by the run with its transfer
+/// function left out: a run that differs from a finished one only in the transfer function
+/// takes its measurements instead of simulating again. Its result line is the one simulating
+/// would write (the identity fields are the run's own; the measurements are equal by
+/// construction: `tests/sweep.rs` compares a sweep that reuses with one that cannot).
+#[derive(Default)]
+struct TimingReuse {
+    measured: Mutex<BTreeMap<String, serde_json::Map<String, Value>>>,
+    reused: std::sync::atomic::AtomicUsize,
+}
+
+impl TimingReuse {
+    /// The run's key without its transfer function, if its timing may be shared.
+    fn timing_key(run: &RunSpec) -> Option<String> {
+        let desc = &run.run;
+        if desc.model != Model::Cycle
+            || desc.sample.is_some()
+            || desc.hardware.timing_depends_on_transfer_function()
+        {
+            return None;
+        }
+        // The occupancy kind follows the transfer function in experiments ('0' or class); with
+        // no structure, bricks or blocking nothing reads it.
+        let mut without_tf = desc.clone();
+        without_tf.tf.clear();
+        without_tf.hardware.occupancy.kind = crate::occupancy::OccupancyKind::Zero;
+        serde_json::to_string(&without_tf).ok()
+    }
+
+    /// Runs the frame, or builds its line from the measurements of a finished run with the
+    /// same timing key.
+    fn run_frame(&self, run: &RunSpec, prepared: &Prepared, experiment: &str) -> Result<Value> {
+        let Some(timing_key) = Self::timing_key(run) else {
+            return run_frame(run, prepared, experiment);
+        };
+        let known = self
+            .measured
+            .lock()
+            .map_err(|_| Error::Invalid("timing cache poisoned".into()))?
+            .get(&timing_key)
+            .cloned();
+        let measured = match known {
+            Some(measured) => {
+                self.reused
+                    .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                measured
+            }
+            None => {
+                let measured = measure_frame(run, prepared)?;
+                self.measured
+                    .lock()
+                    .map_err(|_| Error::Invalid("timing cache poisoned".into()))?
+                    .insert(timing_key, measured.clone());
+                measured
+            }
+        };
+        Ok(result_line(run, experiment, prepared, measured))
+    }
 }
 
 /// Appends a finished run's line (and its wall time) to the shared store.
@@ -202,6 +278,9 @@ pub struct SweepSummary {
     pub already_done: usize,
     pub ran: usize,
     pub torn_lines_dropped: usize,
+    /// Exact cycle runs that took the measurements of a run differing only in the transfer
+    /// function (`HardwareConfig::timing_depends_on_transfer_function`) instead of simulating.
+    pub timings_reused: usize,
     pub wall_seconds: f64,
 }
 
@@ -273,13 +352,14 @@ pub fn sweep(
         summary.wall_seconds = start.elapsed().as_secs_f64();
         return Ok(summary);
     }
+    let reuse = TimingReuse::default();
     order.par_iter().try_for_each(|g| -> Result<()> {
         let runs = &groups[g];
         let volume = &expansion.volumes[&runs[0].run.dataset];
         let prepared = run::prepare(&runs[0].run, volume)?;
         runs.par_iter().try_for_each(|run| -> Result<()> {
             let t = Instant::now();
-            let line = run_frame(run, &prepared, name)?;
+            let line = reuse.run_frame(run, &prepared, name)?;
             append(&store, &run.key, &line, t.elapsed().as_secs_f64())?;
             bar.inc(1);
             Ok(())
@@ -287,6 +367,7 @@ pub fn sweep(
     })?;
     bar.finish_and_clear();
     summary.ran = pending.len();
+    summary.timings_reused = reuse.reused.into_inner();
     summary.wall_seconds = start.elapsed().as_secs_f64();
     Ok(summary)
 }
