@@ -14,7 +14,9 @@
 
 use std::borrow::Cow;
 
-use glam::{Vec3A, Vec4};
+use std::ops::{Add, Mul, Sub};
+
+use glam::{BVec4A, Vec3A, Vec4};
 
 use super::{clip_to_box, render_rows, sample_range, Frame, RayRecord, RenderSettings};
 use crate::bricks::FloatRange;
@@ -35,6 +37,9 @@ pub struct FloatRenderer<'a> {
     /// Transfer function at every integer density, plus one extra copy of the last entry so
     /// that interpolation at the top density needs no branch.
     table: Vec<Vec4>,
+    /// Per integer density i: table[i] and table[i + 1] - table[i], so that classification
+    /// loads one pair and does one multiply-add (the same f32 operations as a lerp).
+    steps: Vec<[Vec4; 2]>,
     settings: RenderSettings,
     /// Ray start and end (bricks, clipping, geometry); None when off.
     ray_range: Option<Box<FloatRange>>,
@@ -72,6 +77,7 @@ impl<'a> FloatRenderer<'a> {
         table.push(table[entries - 1]);
         Ok(FloatRenderer {
             volume: Cow::Borrowed(volume),
+            steps: steps(&table),
             table,
             settings: settings.clone(),
             ray_range: None,
@@ -97,6 +103,7 @@ impl<'a> FloatRenderer<'a> {
                     Vec4::ZERO
                 };
             }
+            self.steps = steps(&self.table);
         }
         Ok(self)
     }
@@ -140,29 +147,37 @@ impl<'a> FloatRenderer<'a> {
 
     pub fn render(&self, camera: &Camera) -> Frame {
         match self.packet {
-            8 => self.render_packets::<8>(camera),
-            4 => self.render_packets::<4>(camera),
+            8 => self.render_packets::<2>(camera),
             _ => self.render_packets::<1>(camera),
         }
     }
 
-    /// Each row in packets of N neighbouring pixels (the last one padded with idle lanes).
-    fn render_packets<const N: usize>(&self, camera: &Camera) -> Frame {
+    /// Each row in packets of `self.packet` neighbouring pixels, marched as G groups of four
+    /// lanes (lanes past the packet's pixels, and past the row's end, are idle).
+    fn render_packets<const G: usize>(&self, camera: &Camera) -> Frame {
+        let width = self.packet;
         render_rows(camera.width, camera.height, |py, pixels, records| {
-            for (chunk, (pixels, records)) in
-                pixels.chunks_mut(N).zip(records.chunks_mut(N)).enumerate()
+            for (chunk, (pixels, records)) in pixels
+                .chunks_mut(width)
+                .zip(records.chunks_mut(width))
+                .enumerate()
             {
-                let mut lanes: [Lane; N] = std::array::from_fn(|l| {
-                    let px = (chunk * N + l) as u32;
-                    if l < pixels.len() {
-                        let ray = camera.voxel_ray(px, py, self.volume.spacing);
-                        self.begin(interleave_ray(ray, px, py, &self.settings), (px, py))
-                    } else {
-                        Lane::idle()
-                    }
+                let mut lanes: [[Lane; 4]; G] = std::array::from_fn(|g| {
+                    std::array::from_fn(|l| {
+                        let i = g * 4 + l;
+                        let px = (chunk * width + i) as u32;
+                        if i < pixels.len() {
+                            let ray = camera.voxel_ray(px, py, self.volume.spacing);
+                            self.begin(interleave_ray(ray, px, py, &self.settings), (px, py))
+                        } else {
+                            Lane::idle()
+                        }
+                    })
                 });
                 self.march(&mut lanes);
-                for ((pixel, record), lane) in pixels.iter_mut().zip(records).zip(&lanes) {
+                for ((pixel, record), lane) in
+                    pixels.iter_mut().zip(records).zip(lanes.iter().flatten())
+                {
                     (*pixel, *record) = self.finish(lane);
                 }
             }
@@ -176,9 +191,10 @@ impl<'a> FloatRenderer<'a> {
 
     /// Casts the ray of pixel (px, py) (the pixel matters only for a depth image).
     pub fn cast_pixel(&self, ray: &Ray, pixel: (u32, u32)) -> ([u8; 4], RayRecord) {
-        let mut lanes = [self.begin(*ray, pixel)];
+        let mut lanes = [[Lane::idle(); 4]];
+        lanes[0][0] = self.begin(*ray, pixel);
         self.march(&mut lanes);
-        self.finish(&lanes[0])
+        self.finish(&lanes[0][0])
     }
 
     /// Sets a ray up: its samples in the box, cut to its start and end (bricks, clipping,
@@ -225,39 +241,122 @@ impl<'a> FloatRenderer<'a> {
     }
 
     /// Samples each lane's `first..end` (until early ray termination), the lanes in step: one
-    /// sample of every lane per iteration. Lanes that are done compute a position in the box
-    /// and discard it, so the loop has no per-lane control flow before classification.
-    fn march<const N: usize>(&self, lanes: &mut [Lane; N]) {
-        let s = self.settings.sample_spacing;
-        let threshold = self.settings.ert_threshold.unwrap_or(f32::INFINITY);
-        let mut k: [i64; N] = std::array::from_fn(|l| lanes[l].first);
-        let mut end: [i64; N] = std::array::from_fn(|l| lanes[l].end);
-        let o: [[f32; N]; 3] =
-            std::array::from_fn(|a| std::array::from_fn(|l| lanes[l].ray.origin[a]));
-        let d: [[f32; N]; 3] =
-            std::array::from_fn(|a| std::array::from_fn(|l| lanes[l].ray.dir[a]));
-        // Local copies of what every sample reads: the renderer is shared with the other
-        // threads, so the compiler would read its fields again at every sample.
-        let (grid, data) = (self.grid, &self.volume.data[..]);
-        while (0..N).any(|l| k[l] < end[l]) {
-            let p = positions(&o, &d, std::array::from_fn(|l| k[l].min(end[l])), s);
-            let (entry, f) = table_position(grid.interpolate(data, &p));
-            for (l, lane) in lanes.iter_mut().enumerate() {
-                if k[l] >= end[l] {
-                    continue;
+    /// sample of every lane per iteration, each group of four lanes as SIMD vectors (`Lanes`
+    /// for `Vec4`), the accumulated colours and opacities as structure of arrays. Lanes that
+    /// are done (or had nothing to march) compute a position in the box and discard it: in a
+    /// run of iterations in which the same lanes are live nothing is decided per lane.
+    fn march<const G: usize>(&self, lanes: &mut [[Lane; 4]; G]) {
+        // Samples each lane takes; early ray termination cuts it.
+        let mut count: [[i64; 4]; G] = lanes.map(|g| g.map(|lane| lane.end - lane.first));
+        let mut acc: [[Vec4; 4]; G] = lanes.map(|g| {
+            let a = g.map(|lane| lane.acc);
+            [0, 1, 2, 3].map(|c| Vec4::new(a[0][c], a[1][c], a[2][c], a[3][c]))
+        });
+        let groups: [Group; G] = lanes.map(|g| Group {
+            first: g.map(|lane| lane.first),
+            o: [0, 1, 2].map(|a| Vec4::from_array(g.map(|lane| lane.ray.origin[a]))),
+            d: [0, 1, 2].map(|a| Vec4::from_array(g.map(|lane| lane.ray.dir[a]))),
+            dirs: g.map(|lane| lane.ray.dir),
+        });
+        let mut i = 0;
+        loop {
+            let live: [[bool; 4]; G] = count.map(|g| g.map(|n| n > i));
+            // Every live lane takes samples until the first of them has taken all.
+            let Some(stop) = (0..G * 4)
+                .filter(|&j| live[j / 4][j % 4])
+                .map(|j| count[j / 4][j % 4])
+                .min()
+            else {
+                break;
+            };
+            let ended = if live.iter().flatten().all(|&b| b) {
+                self.run::<G, false>(&groups, i..stop, live, &mut acc)
+            } else {
+                self.run::<G, true>(&groups, i..stop, live, &mut acc)
+            };
+            i = match ended {
+                Some((at, full)) => {
+                    for j in (0..G * 4).filter(|&j| full[j / 4][j % 4]) {
+                        let n = &mut count[j / 4][j % 4];
+                        lanes[j / 4][j % 4].record.terminated_early = at + 1 < *n;
+                        *n = at + 1;
+                    }
+                    at + 1
                 }
-                let q = Vec3A::new(p[0][l], p[1][l], p[2][l]);
-                let rgba = self.classify_entry(entry[l], f[l], q, lane.ray.dir);
-                lane.record.samples += 1;
-                composite(&mut lane.acc, self.opacity(rgba.w), rgba);
-                if lane.acc.w >= threshold {
-                    lane.record.terminated_early = k[l] + 1 < end[l];
-                    end[l] = k[l];
-                } else {
-                    k[l] += 1;
-                }
+                None => stop,
+            };
+        }
+        for (g, group) in lanes.iter_mut().enumerate() {
+            for (l, lane) in group.iter_mut().enumerate() {
+                lane.acc = Vec4::from_array(acc[g].map(|c| c.lane(l)));
+                lane.record.samples += count[g][l] as u32;
             }
         }
+    }
+
+    /// Iterations `iters` of `march`: sample i of every lane. Only the lanes in `live` (all of
+    /// them unless `MASKED`) composite. Returns the iteration and the live lanes whose opacity
+    /// reached the threshold there, if any did.
+    #[inline(always)]
+    fn run<const G: usize, const MASKED: bool>(
+        &self,
+        groups: &[Group; G],
+        iters: std::ops::Range<i64>,
+        live: [[bool; 4]; G],
+        acc: &mut [[Vec4; 4]; G],
+    ) -> Option<(i64, [[bool; 4]; G])> {
+        let s = self.settings.sample_spacing;
+        let threshold = Vec4::splat(self.settings.ert_threshold.unwrap_or(f32::INFINITY));
+        // Local copies of what every sample reads: the renderer is shared with the other
+        // threads, so the compiler would read its fields again at every sample.
+        let (grid, steps) = (self.grid, &self.steps[..]);
+        let voxels = grid.voxels(&self.volume.data);
+        let live_mask = live.map(|g| BVec4A::new(g[0], g[1], g[2], g[3]));
+        for i in iters {
+            let mut full = [[false; 4]; G];
+            for g in 0..G {
+                let group = &groups[g];
+                let t = Vec4::from_array(group.first.map(|k| (k + i) as f32)) * s;
+                let p = positions(group.o, group.d, t);
+                let (entry, f) = table_position(grid.interpolate(&voxels, p));
+                let rgba: [Vec4; 4] = std::array::from_fn(|l| {
+                    let q = Vec3A::new(p[0].lane(l), p[1].lane(l), p[2].lane(l));
+                    self.classify_step(steps, entry(l), f.lane(l), q, group.dirs[l])
+                });
+                let [r, gr, b, a] = glam::Mat4::from_cols(rgba[0], rgba[1], rgba[2], rgba[3])
+                    .transpose()
+                    .to_cols_array_2d()
+                    .map(Vec4::from_array);
+                let alpha = if s == 1.0 {
+                    a
+                } else {
+                    Vec4::from_array(std::array::from_fn(|l| correct_opacity(a.lane(l), s)))
+                };
+                let acc = &mut acc[g];
+                let w = (Vec4::ONE - acc[3]) * alpha;
+                for (c, colour) in [r, gr, b, Vec4::ONE].into_iter().enumerate() {
+                    let sum = acc[c] + w * colour;
+                    acc[c] = if MASKED {
+                        Vec4::select(live_mask[g], sum, acc[c])
+                    } else {
+                        sum
+                    };
+                }
+                let reached = acc[3].cmpge(threshold);
+                let reached = if MASKED {
+                    reached & live_mask[g]
+                } else {
+                    reached
+                };
+                if reached.any() {
+                    full[g] = [0, 1, 2, 3].map(|l| reached.test(l));
+                }
+            }
+            if full.iter().flatten().any(|&b| b) {
+                return Some((i, full));
+            }
+        }
+        None
     }
 
     /// The pixel: the opaque surface (geometry) or the background composited behind the
@@ -439,15 +538,21 @@ impl<'a> FloatRenderer<'a> {
     /// Colour and per-voxel opacity of density `v` at `p`; shading uses the gradient at `p`.
     #[inline(always)]
     fn classify_density(&self, v: f32, p: Vec3A, dir: Vec3A) -> Vec4 {
-        let ([i], [f]) = table_position([v]);
-        self.classify_entry(i, f, p, dir)
+        let (i, f) = table_position(v);
+        self.classify_entry(i(0), f, p, dir)
     }
 
     /// Colour and per-voxel opacity between table entries i and i + 1 at fraction f.
     #[inline(always)]
     fn classify_entry(&self, i: usize, f: f32, p: Vec3A, dir: Vec3A) -> Vec4 {
-        let (a, b) = (self.table[i], self.table[i + 1]);
-        let rgba = a + (b - a) * f;
+        self.classify_step(&self.steps, i, f, p, dir)
+    }
+
+    /// `classify_entry` with the renderer's `steps` passed in (a local copy in the ray loop).
+    #[inline(always)]
+    fn classify_step(&self, steps: &[[Vec4; 2]], i: usize, f: f32, p: Vec3A, dir: Vec3A) -> Vec4 {
+        let [a, slope] = steps[i];
+        let rgba = a + slope * f;
         if self.settings.shading && rgba.w > 0.0 {
             let (diffuse, specular) = self.phong(p, dir);
             let lit =
@@ -460,8 +565,8 @@ impl<'a> FloatRenderer<'a> {
     /// Trilinear interpolation at `p` (see `Grid::interpolate`).
     #[inline(always)]
     pub fn interpolate(&self, p: Vec3A) -> f32 {
-        self.grid
-            .interpolate(&self.volume.data, &[[p.x], [p.y], [p.z]])[0]
+        let voxels = self.grid.voxels(&self.volume.data);
+        self.grid.interpolate(&voxels, [p.x, p.y, p.z])
     }
 
     /// Opacity of a sample per sample spacing S, from its opacity per voxel.
@@ -478,8 +583,8 @@ impl<'a> FloatRenderer<'a> {
     /// (diffuse factor, specular term): the per-voxel gradients of the 8 neighbours,
     /// interpolated with the sample's weights (see `shading`).
     fn phong(&self, p: Vec3A, dir: Vec3A) -> (f32, f32) {
-        let (base, frac) = self.grid.cell(&[[p.x], [p.y], [p.z]]);
-        let (base, frac) = (base.map(|b| b[0] as usize), frac.map(|f| f[0]));
+        let (base, frac) = self.grid.cell([p.x, p.y, p.z]);
+        let base = base.map(|b| b as usize);
         let mut g = Vec3A::ZERO;
         for corner in 0..8 {
             let offset = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
@@ -505,7 +610,7 @@ impl<'a> FloatRenderer<'a> {
 }
 
 #[inline(always)]
-fn lerp(a: f32, b: f32, t: f32) -> f32 {
+fn lerp<L: Lanes>(a: L, b: L, t: L) -> L {
     a + t * (b - a)
 }
 
@@ -543,48 +648,146 @@ impl Lane {
     }
 }
 
-/// The positions (axis, lane) of samples k (t = k·S) on rays of origins `o` and directions
-/// `d` (axis, lane): o + d·t per component, the one definition every path uses.
-#[inline(always)]
-fn positions<const N: usize>(
-    o: &[[f32; N]; 3],
-    d: &[[f32; N]; 3],
-    k: [i64; N],
-    s: f32,
-) -> [[f32; N]; 3] {
-    let t: [f32; N] = std::array::from_fn(|l| k[l] as f32 * s);
-    std::array::from_fn(|a| std::array::from_fn(|l| o[a][l] + d[a][l] * t[l]))
+/// One group of four rays of a packet: first samples, origins and directions (axis, lane).
+struct Group {
+    first: [i64; 4],
+    o: [Vec4; 3],
+    d: [Vec4; 3],
+    dirs: [Vec3A; 4],
 }
 
-/// The position of sample k on `ray` (`positions` with one lane).
+/// The lanes of a packet step as one value: `f32` (one ray or one sample) or `Vec4` (four
+/// rays, one SIMD instruction per operation). Every step of a sample is written once, generic
+/// over `Lanes`, so that each lane performs the same f32 operations in the same order whatever
+/// its packet; the comparisons are the ones SSE does in one instruction.
+trait Lanes: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> {
+    fn splat(x: f32) -> Self;
+    /// Lane l is `f(l)`.
+    fn from_fn(f: impl FnMut(usize) -> f32) -> Self;
+    fn lane(self, l: usize) -> f32;
+    /// Per lane `if self > other { self } else { other }` (SSE's `maxps`).
+    fn max_first(self, other: Self) -> Self;
+    /// Per lane `if self < other { self } else { other }` (SSE's `minps`).
+    fn min_first(self, other: Self) -> Self;
+    /// Per lane `if self > other { 1.0 } else { 0.0 }`.
+    fn gt_one(self, other: Self) -> Self;
+}
+
+impl Lanes for f32 {
+    #[inline(always)]
+    fn splat(x: f32) -> f32 {
+        x
+    }
+    #[inline(always)]
+    fn from_fn(mut f: impl FnMut(usize) -> f32) -> f32 {
+        f(0)
+    }
+    #[inline(always)]
+    fn lane(self, _: usize) -> f32 {
+        self
+    }
+    #[inline(always)]
+    fn max_first(self, other: f32) -> f32 {
+        if self > other {
+            self
+        } else {
+            other
+        }
+    }
+    #[inline(always)]
+    fn min_first(self, other: f32) -> f32 {
+        if self < other {
+            self
+        } else {
+            other
+        }
+    }
+    #[inline(always)]
+    fn gt_one(self, other: f32) -> f32 {
+        if self > other {
+            1.0
+        } else {
+            0.0
+        }
+    }
+}
+
+impl Lanes for Vec4 {
+    #[inline(always)]
+    fn splat(x: f32) -> Vec4 {
+        Vec4::splat(x)
+    }
+    #[inline(always)]
+    fn from_fn(f: impl FnMut(usize) -> f32) -> Vec4 {
+        Vec4::from_array(std::array::from_fn(f))
+    }
+    #[inline(always)]
+    fn lane(self, l: usize) -> f32 {
+        self[l]
+    }
+    #[inline(always)]
+    fn max_first(self, other: Vec4) -> Vec4 {
+        // glam's `max` is `maxps` with SSE2; elsewhere say it per lane.
+        if cfg!(target_feature = "sse2") {
+            self.max(other)
+        } else {
+            Vec4::select(self.cmpgt(other), self, other)
+        }
+    }
+    #[inline(always)]
+    fn min_first(self, other: Vec4) -> Vec4 {
+        if cfg!(target_feature = "sse2") {
+            self.min(other)
+        } else {
+            Vec4::select(self.cmplt(other), self, other)
+        }
+    }
+    #[inline(always)]
+    fn gt_one(self, other: Vec4) -> Vec4 {
+        Vec4::select(self.cmpgt(other), Vec4::ONE, Vec4::ZERO)
+    }
+}
+
+/// The positions (axis) of the samples at ray parameters t on rays of origins `o` and
+/// directions `d` (axis): o + d·t per component, the one definition every path uses.
+#[inline(always)]
+fn positions<L: Lanes>(o: [L; 3], d: [L; 3], t: L) -> [L; 3] {
+    [0, 1, 2].map(|a| o[a] + d[a] * t)
+}
+
+/// The position of sample k (t = k·S) on `ray` (`positions` with one lane).
 #[inline(always)]
 fn position(ray: &Ray, k: i64, s: f32) -> Vec3A {
-    let lane = |v: Vec3A| [[v.x], [v.y], [v.z]];
-    let [[x], [y], [z]] = positions(&lane(ray.origin), &lane(ray.dir), [k], s);
-    Vec3A::new(x, y, z)
+    let lane = |v: Vec3A| [v.x, v.y, v.z];
+    Vec3A::from_array(positions(lane(ray.origin), lane(ray.dir), k as f32 * s))
 }
 
-/// Table entries and fractions of densities v (per lane, v >= 0).
+/// Table entries (per lane) and fractions of densities v (v >= 0).
 #[inline(always)]
-fn table_position<const N: usize>(v: [f32; N]) -> ([usize; N], [f32; N]) {
+fn table_position<L: Lanes>(v: L) -> (impl Fn(usize) -> usize, L) {
     let i = floor(v);
-    (
-        i.map(|i| i as usize),
-        std::array::from_fn(|l| v[l] - i[l] as f32),
-    )
+    (index(i), v - i)
 }
 
-/// floor(x) per lane, for lanes in [0, 2^23) (positions and densities are). Written with a float
-/// add and bit casts, which the compiler does for a whole packet per instruction (`x as i32`
-/// saturates, which it converts lane by lane): x + 2^23 rounds x to the integer n held in its
-/// low mantissa bits; floor is n, or n - 1 when n rounded up.
+const TWO_23: f32 = 8_388_608.0;
+
+/// floor(x) per lane, for lanes in [0, 2^23) (positions and densities are), as floats: x + 2^23
+/// rounds x to the integer n held in its low mantissa bits (exact, as is n - 2^23); floor is n,
+/// or n - 1 when n rounded up.
 #[inline(always)]
-fn floor<const N: usize>(x: [f32; N]) -> [i32; N] {
-    const TWO_23: f32 = 8_388_608.0;
-    std::array::from_fn(|l| {
-        let n = (x[l] + TWO_23).to_bits() as i32 - TWO_23.to_bits() as i32;
-        n - ((n as f32) > x[l]) as i32
-    })
+fn floor<L: Lanes>(x: L) -> L {
+    let two_23 = L::splat(TWO_23);
+    let n = (x + two_23) - two_23;
+    n - n.gt_one(x)
+}
+
+/// Integers n in [0, 2^23) held as floats (from `floor`), as indices per lane: the bits of
+/// n + 2^23 less those of 2^23 (`as usize` would saturate, which the compiler does lane by
+/// lane).
+#[inline(always)]
+fn index<L: Lanes>(n: L) -> impl Fn(usize) -> usize {
+    let biased = n + L::splat(TWO_23);
+    move |l| (biased.lane(l).to_bits() - TWO_23.to_bits()) as usize
 }
 
 /// Front-to-back compositing: a sample of colour c and opacity a adds (1 - A)·a·(c, 1).
@@ -593,64 +796,87 @@ fn composite(acc: &mut Vec4, a: f32, rgba: Vec4) {
     *acc += (1.0 - acc.w) * a * rgba.truncate().extend(1.0);
 }
 
-/// The volume's lattice: per axis the largest coordinate, the largest lower corner of a cell
-/// (dim - 2, so that its +1 neighbour exists) and the stride; the offsets of a cell's four
-/// x-pairs of voxels from its lower corner (rows y, y + 1 at z, then at z + 1) and the span of
-/// voxels a cell covers.
+/// The volume's lattice: per axis the largest coordinate and the largest lower corner of a
+/// cell (dim - 2, so that its +1 neighbour exists), as floats; the strides; the offsets of a
+/// cell's four x-pairs of voxels from its lower corner (rows y, y + 1 at z, then at z + 1).
 #[derive(Clone, Copy, Debug)]
 struct Grid {
     hi: [f32; 3],
-    top: [i32; 3],
+    top: [f32; 3],
     stride: [usize; 3],
     rows: [usize; 4],
-    span: usize,
+}
+
+/// The volume's voxels seen from each of a cell's four x-pairs: `rows[r]` is the data from
+/// `Grid::rows[r]` on, all four of the same length, so that one bounds check of a lower corner
+/// covers the cell's eight voxels.
+struct Voxels<'d> {
+    rows: [&'d [u16]; 4],
 }
 
 impl Grid {
     fn new(dims: [usize; 3]) -> Grid {
         let stride = [1, dims[0], dims[0] * dims[1]];
         Grid {
-            // Dims are 2..=MAX_DIM (`volume::check_dims`): exact in f32 and i32.
+            // Dims are 2..=MAX_DIM (`volume::check_dims`): exact in f32.
             hi: dims.map(|d| (d - 1) as f32),
-            top: dims.map(|d| (d - 2) as i32),
+            top: dims.map(|d| (d - 2) as f32),
             stride,
             rows: [0, stride[1], stride[2], stride[2] + stride[1]],
-            span: stride[2] + stride[1] + 2,
         }
     }
 
-    /// Lower corners and fractions of the cells holding the positions `p` (axis, lane).
+    /// `data` (the volume's voxels) as `Voxels`: the largest lower corner plus one is the last
+    /// index of each row view.
+    #[inline(always)]
+    fn voxels<'d>(&self, data: &'d [u16]) -> Voxels<'d> {
+        let len = data.len() - self.rows[3];
+        Voxels {
+            rows: self.rows.map(|r| &data[r..r + len]),
+        }
+    }
+
+    /// Lower corners and fractions (axis) of the cells holding the positions `p` (axis).
     /// Positions are clamped into the box so that rounding at its faces cannot read outside
     /// the volume; at x = dim - 1 the corner stays dim - 2 with fraction 1.
     #[inline(always)]
-    fn cell<const N: usize>(&self, p: &[[f32; N]; 3]) -> ([[i32; N]; 3], [[f32; N]; 3]) {
-        let mut base = [[0i32; N]; 3];
-        let mut frac = [[0f32; N]; 3];
-        for axis in 0..3 {
-            let x: [f32; N] = std::array::from_fn(|l| p[axis][l].clamp(0.0, self.hi[axis]));
-            base[axis] = floor(x).map(|b| b.min(self.top[axis]));
-            frac[axis] = std::array::from_fn(|l| x[l] - base[axis][l] as f32);
-        }
-        (base, frac)
+    fn cell<L: Lanes>(&self, p: [L; 3]) -> ([L; 3], [L; 3]) {
+        let x: [L; 3] = std::array::from_fn(|a| {
+            // `f32::clamp(0.0, hi)`, lane by lane.
+            L::splat(self.hi[a]).min_first(L::splat(0.0).max_first(p[a]))
+        });
+        let base: [L; 3] = std::array::from_fn(|a| L::splat(self.top[a]).min_first(floor(x[a])));
+        (base, std::array::from_fn(|a| x[a] - base[a]))
     }
 
-    /// Trilinear interpolation of `data` at the positions `p` (axis, lane): x, then y, then z.
+    /// Trilinear interpolation of the voxels at the positions `p` (axis): x, then y, then z.
     #[inline(always)]
-    fn interpolate<const N: usize>(&self, data: &[u16], p: &[[f32; N]; 3]) -> [f32; N] {
+    fn interpolate<L: Lanes>(&self, voxels: &Voxels, p: [L; 3]) -> L {
         let (base, [fx, fy, fz]) = self.cell(p);
-        // Lane by lane: each cell's four x-pairs are adjacent voxels, which the compiler loads
-        // and interpolates as vectors within the lane.
-        std::array::from_fn(|l| {
-            let i0 = base[0][l] as usize
-                + base[1][l] as usize * self.stride[1]
-                + base[2][l] as usize * self.stride[2];
-            let cube = &data[i0..i0 + self.span];
-            let [c00, c10, c01, c11] = self
-                .rows
-                .map(|r| lerp(cube[r] as f32, cube[r + 1] as f32, fx[l]));
-            lerp(lerp(c00, c10, fy[l]), lerp(c01, c11, fy[l]), fz[l])
-        })
+        let [bx, by, bz] = base.map(index);
+        let corner = |l: usize| bx(l) + by(l) * self.stride[1] + bz(l) * self.stride[2];
+        // Row r's pair of voxels in each lane.
+        let pair = |r: usize| {
+            let row = voxels.rows[r];
+            let at = |l: usize| {
+                let i = corner(l);
+                let pair = &row[i..i + 2];
+                (pair[0] as f32, pair[1] as f32)
+            };
+            (L::from_fn(|l| at(l).0), L::from_fn(|l| at(l).1))
+        };
+        let [c00, c10, c01, c11] = [0, 1, 2, 3].map(|r| {
+            let (a, b) = pair(r);
+            lerp(a, b, fx)
+        });
+        lerp(lerp(c00, c10, fy), lerp(c01, c11, fy), fz)
     }
+}
+
+/// Per integer density: the table's entry and its difference to the next (see
+/// `FloatRenderer::steps`).
+fn steps(table: &[Vec4]) -> Vec<[Vec4; 2]> {
+    table.windows(2).map(|w| [w[0], w[1] - w[0]]).collect()
 }
 
 #[inline]
@@ -660,10 +886,10 @@ fn to_u8(x: f32) -> u8 {
 
 #[cfg(test)]
 mod tests {
-    use super::floor;
+    use super::{floor, index};
 
     /// `floor` equals truncation for integers, halves and their neighbours one ulp away, up to
-    /// the largest density.
+    /// the largest density, and `to_index` of it equals the integer.
     #[test]
     fn floor_matches_truncation() {
         let mut xs = vec![0.0f32, -0.0];
@@ -677,8 +903,12 @@ mod tests {
         }
         for chunk in xs.chunks(4) {
             let lanes: [f32; 4] = std::array::from_fn(|l| chunk[l % chunk.len()]);
-            assert_eq!(floor(lanes), lanes.map(|x| x as i32), "{lanes:?}");
-            assert_eq!(floor([chunk[0]]), [chunk[0] as i32]);
+            let n = floor(glam::Vec4::from_array(lanes));
+            assert_eq!(n.to_array(), lanes.map(|x| x.trunc()), "{lanes:?}");
+            let i = index(n);
+            assert_eq!([0, 1, 2, 3].map(i), lanes.map(|x| x as usize), "{lanes:?}");
+            assert_eq!(floor(chunk[0]), chunk[0].trunc());
+            assert_eq!(index(floor(chunk[0]))(0), chunk[0] as usize);
         }
     }
 }
