@@ -183,7 +183,7 @@ fn the_simulated_share_follows_the_rate() {
 
 /// The dry run's time estimate knows about sampling: the same sweep sampled at 0.05 is
 /// estimated at about a fifth of its exact cost (the functional frame plus the simulated
-/// share; measured on the protocol: 1,611 CPU-seconds against about 8,400).
+/// share; measured on the protocol: 1,233 CPU-seconds against about 8,400).
 #[test]
 fn a_dry_run_estimates_a_sampled_sweep_below_the_exact_one() {
     let dir = std::env::temp_dir().join(format!("vizsim-sampling-dry-{}", std::process::id()));
