@@ -19,7 +19,7 @@ use crate::arch::command_trace::CommandTrace;
 use crate::arch::pipeline::{
     simulate_with, tile_order, CycleResult, CycleStats, SimOptions, StallCycles,
 };
-use crate::arch::sampling::{seed_of, simulate_sampled, SampledEstimate, Sampling};
+use crate::arch::sampling::{seed_of, simulate_sampled, SampledEstimate, Sampling, Warm};
 use crate::arch::sdram_module::SdramMemory;
 use crate::arch::trace::Waveform;
 use crate::arch::voxel_memory::{IdealMemory, VoxelMemory};
@@ -630,13 +630,13 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
                         [stats.samples, stats.leaps]
                     },
                     |range| misses_before[range.end] - misses_before[range.start],
-                    |rays, checkpoints| {
+                    |rays, checkpoints, warm| {
                         let options = SimOptions {
                             rays: Some(rays),
                             checkpoints: Some(checkpoints),
                             ..SimOptions::default()
                         };
-                        simulate_cycle(run, r, &skipper, &camera, dims, options)?;
+                        simulate_cycle(run, r, &skipper, &camera, dims, options, warm)?;
                         Ok(())
                     },
                 )?;
@@ -656,7 +656,8 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
                     command_trace: probes.command_trace,
                     ..SimOptions::default()
                 };
-                let (result, stats) = simulate_cycle(run, r, &r.skipper(), &camera, dims, options)?;
+                let (result, stats) =
+                    simulate_cycle(run, r, &r.skipper(), &camera, dims, options, Warm::Cold)?;
                 memory_stats = Some(stats);
                 pipeline = Some(result.stats);
                 result.frame
@@ -774,6 +775,7 @@ fn simulate_cycle(
     camera: &Camera,
     dims: [usize; 3],
     options: SimOptions,
+    warm: Warm,
 ) -> Result<(CycleResult, Value)> {
     let config = &run.hardware;
     match run.memory {
@@ -782,12 +784,17 @@ fn simulate_cycle(
                 Some(blocks) => AddressMap::blocked(&config.memory, dims, blocks.clone()),
                 None => AddressMap::new(&config.memory, dims),
             };
-            let memory = SdramMemory::with_map(
+            let mut memory = SdramMemory::with_map(
                 &config.memory,
                 &config.sdram,
                 map,
                 config.clock.frequency_mhz,
             );
+            // A sampled segment inside the frame: the refresh counter at a pseudo-random
+            // phase (docs/sampling.md, "Warming").
+            if let Warm::Inside { phase } = warm {
+                memory.warm_refresh_phase(phase);
+            }
             simulate_memory(renderer, skipper, camera, memory, config, options)
         }
         Memory::Ideal { latency } => simulate_memory(

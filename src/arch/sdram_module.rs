@@ -702,3 +702,20 @@ impl VoxelMemory for SdramMemory {
         self.longest_wait
     }
 }
+
+/// Functional warming for sampled simulation (`arch::sampling`): a segment that starts inside
+/// the frame starts the memory's refresh counter at a phase of the refresh interval rather than
+/// at 0 (the frame's first refresh), so that a measured window does not always meet its
+/// refreshes at the same place.
+impl SdramMemory {
+    /// The first refresh of every module comes `refresh_interval - phase % refresh_interval`
+    /// cycles from now (at cycle 0, before the first step), as if the frame had last refreshed
+    /// `phase % refresh_interval` cycles ago. No effect without refresh.
+    pub fn warm_refresh_phase(&mut self, phase: u64) {
+        for module in &mut self.modules {
+            if let Some(interval) = module.refresh_interval {
+                module.next_refresh = interval - phase % interval;
+            }
+        }
+    }
+}
