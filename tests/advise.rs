@@ -247,7 +247,8 @@ fn cli_prints_the_ranking_and_json() {
 #[test]
 fn a_table_is_validated_against_its_own_frame_rates() {
     // Frame rates made up so that the truth is known: 8³ + hierarchy is the best that fits.
-    let dir = std::env::temp_dir().join(format!("vizsim-advise-table-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("vizsim-advise-table-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let table = dir.join("cycle-fps.csv");
     std::fs::write(

@@ -529,7 +529,8 @@ fn the_blocking_section_is_written_only_when_set() {
 #[test]
 fn when_density_zero_is_visible_every_block_is_active() {
     let volume = common::ball(64);
-    let dir = std::env::temp_dir().join(format!("vizsim-blocking-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("vizsim-blocking-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let tf_path = dir.join("zero-visible.toml");
     std::fs::write(
@@ -576,7 +577,8 @@ fn when_density_zero_is_visible_every_block_is_active() {
 /// blocking figures.
 #[test]
 fn sim_says_blocking_makes_it_fit_and_reports_the_memory_saved() {
-    let dir = std::env::temp_dir().join(format!("vizsim-blocking-cli-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("vizsim-blocking-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let png = dir.join("jet.png");
     let json = dir.join("jet.json");

@@ -46,8 +46,8 @@ struct Corpus {
 
 impl Corpus {
     fn new(name: &str) -> Corpus {
-        let root =
-            std::env::temp_dir().join(format!("vizsim-corpus-{}-{name}", std::process::id()));
+        let root = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+            .join(format!("vizsim-corpus-{}-{name}", std::process::id()));
         let _ = std::fs::remove_dir_all(&root);
         std::fs::create_dir_all(&root).unwrap();
         Corpus {

@@ -147,7 +147,8 @@ fn bad_sample_rates_are_refused_naming_the_flag() {
 
 #[test]
 fn an_experiment_with_a_bad_rate_is_refused_naming_the_field() {
-    let dir = std::env::temp_dir().join(format!("vizsim-sampling-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("vizsim-sampling-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("bad.toml");
     std::fs::write(
@@ -186,7 +187,8 @@ fn the_simulated_share_follows_the_rate() {
 /// share; measured on the protocol: 1,233 CPU-seconds against about 8,400).
 #[test]
 fn a_dry_run_estimates_a_sampled_sweep_below_the_exact_one() {
-    let dir = std::env::temp_dir().join(format!("vizsim-sampling-dry-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("vizsim-sampling-dry-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let estimate = |sample: &str| -> f64 {

@@ -648,7 +648,8 @@ fn waveform_records_its_window_and_changes_no_result() {
         Leaping::None,
     )
     .unwrap();
-    let dir = std::env::temp_dir().join(format!("vizsim-vcd-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("vizsim-vcd-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("frame.vcd");
     let run = |waveform: Option<&mut Waveform>| {
