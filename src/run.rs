@@ -26,7 +26,7 @@ use crate::arch::voxel_memory::{IdealMemory, VoxelMemory};
 use crate::blocking::{BlockTable, BlockingStats};
 use crate::bricks::RayRangeStats;
 use crate::camera::{check_image_size, Camera, Projection, View};
-use crate::config::{HardwareConfig, LeapRegions, RaySelection};
+use crate::config::{HardwareConfig, LeapRegions, LeapStructure, RaySelection};
 use crate::error::{Error, Result};
 use crate::functional::leaping::ConfiguredSkipper;
 use crate::functional::renderer::{FixedRenderer, Leaping};
@@ -583,6 +583,48 @@ pub fn run(
     execute(run, &prepared, probes)
 }
 
+/// The run as far as its frame's timing and counts can tell: the run with what they cannot
+/// depend on left out. Runs with equal timing descriptions take the same cycles, stalls, memory
+/// counts and step counts (the measurements but `skippable_subcubes_percent`, the map's own
+/// figure), so a sweep reuses them (`experiment::sweep`), and a sampled run draws its sample
+/// by it (so such twins sample alike). Left out:
+/// - a leaping structure that never leaps, or a hierarchy that never leaps further
+///   (`FixedRenderer::effective_leaping`: an occupancy map with no empty sub-cube, or no empty
+///   group): the renderer steps as without it;
+/// - without a map, its SRAM size and hierarchy flag (nothing reads them; experiments raise the
+///   SRAM for large maps only);
+/// - when nothing reads a sample's value before compositing
+///   (`HardwareConfig::timing_depends_on_transfer_function` false on what is left), the
+///   transfer function and the occupancy kind that follows it.
+pub fn timing_description(run: &RunDescription, prepared: &Prepared) -> RunDescription {
+    let mut timing = run.clone();
+    let occupancy = &mut timing.hardware.occupancy;
+    if let Some(renderer) = prepared.fixed() {
+        match renderer.effective_leaping() {
+            Leaping::None => occupancy.subcube = 0,
+            Leaping::Occupancy {
+                hierarchy: false, ..
+            } => occupancy.hierarchy = false,
+            _ => {}
+        }
+    }
+    if occupancy.structure == LeapStructure::Map && occupancy.subcube == 0 {
+        occupancy.sram_bits = 0;
+        occupancy.hierarchy = false;
+    }
+    if !timing.hardware.timing_depends_on_transfer_function() {
+        timing.tf.clear();
+        timing.hardware.occupancy.kind = OccupancyKind::Zero;
+    }
+    timing
+}
+
+/// The share of the run's occupancy map that is empty, percent (None without a map).
+pub fn skippable_subcubes_percent(prepared: &Prepared) -> Option<f64> {
+    let map = prepared.fixed().and_then(|r| r.map.as_ref())?;
+    Some(100.0 * map.empty_subcubes() as f64 / map.subcubes().max(1) as f64)
+}
+
 /// Runs one frame of a prepared run: the one function every command calls.
 pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Result<RunReport> {
     let camera = run.camera(prepared.volume)?;
@@ -617,7 +659,9 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
                 }
                 // Built once: with the hierarchy it is a structure of its own.
                 let skipper = r.skipper();
-                let seed = seed_of(&serde_json::to_string(run).map_err(|e| {
+                // Runs that time alike sample alike (a sweep may reuse one for the other).
+                let timing = timing_description(run, prepared);
+                let seed = seed_of(&serde_json::to_string(&timing).map_err(|e| {
                     Error::Invalid(format!("run description not serialisable: {e}"))
                 })?);
                 let estimate = simulate_sampled(
@@ -718,10 +762,7 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
             None => RayRangeStats::from_records(&frame.rays),
         });
     }
-    if let Some(map) = prepared.fixed().and_then(|r| r.map.as_ref()) {
-        m.skippable_subcubes_percent =
-            Some(100.0 * map.empty_subcubes() as f64 / map.subcubes().max(1) as f64);
-    }
+    m.skippable_subcubes_percent = skippable_subcubes_percent(prepared);
     if let Some(blocks) = prepared.fixed().and_then(|r| r.blocks.as_ref()) {
         let mut stats = BlockingStats::new(
             blocks,

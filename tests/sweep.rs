@@ -758,3 +758,76 @@ size = "24x24"
     assert_eq!(sorted_lines(&out.join("results.jsonl")), separate);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A leaping structure that never leaps (an occupancy map with no empty sub-cube, or a
+/// hierarchy with no empty group) times as the run without it: a sweep reuses the twin's
+/// measurements, and the lines must be those of sweeping each mode alone (nothing to reuse),
+/// byte for byte. On the 32³ metaballs phantom the 16³ map has no empty sub-cube, so the 8³
+/// map has no empty group.
+#[test]
+fn cycle_runs_with_a_structure_that_never_leaps_reuse_the_timing_exactly() {
+    let dir = temp_dir("reuse-inert");
+    let modes = ["ert", "ert+leap8", "ert+leap8+hier", "ert+leap16"];
+    let text = |modes: &[&str]| {
+        format!(
+            r#"
+name = "ci-reuse-inert"
+datasets = ["phantom:metaballs:32"]
+tf = ["zero"]
+modes = {modes:?}
+models = ["cycle"]
+[frames]
+orbit = 72
+select = [0, 7]
+size = "24x24"
+"#
+        )
+    };
+    let sweep = |name: &str, modes: &[&str], threads: &str| {
+        let sub = dir.join(name);
+        std::fs::create_dir_all(&sub).unwrap();
+        let exp = sub.join("exp.toml");
+        std::fs::write(&exp, text(modes)).unwrap();
+        let out = sub.join("out");
+        let r = vizsim(&[
+            "sweep",
+            exp.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--threads",
+            threads,
+        ]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        (
+            String::from_utf8_lossy(&r.stdout).into_owned(),
+            sorted_lines(&out.join("results.jsonl")),
+        )
+    };
+    // One thread, the 'ert' group first (the longest estimate), then the leaping groups in
+    // order: both frames of 16³ take the 'ert' timing, both of 8³ + hierarchy the 8³ one.
+    let (said, together) = sweep("together", &modes, "1");
+    assert!(
+        said.contains("4 cycle runs took the timing"),
+        "the sweep says what it reused: {said}"
+    );
+    let mut separate = Vec::new();
+    for mode in modes {
+        let (said, lines) = sweep(&mode.replace('+', "-"), &[mode], "2");
+        assert!(!said.contains("took the timing"), "{said}");
+        separate.extend(lines);
+    }
+    separate.sort();
+    assert_eq!(separate.len(), 8);
+    assert_eq!(together, separate);
+    // The reused lines keep the map's own figure: 0 % empty for 16³, none without a map.
+    let skippable: Vec<Option<f64>> = together
+        .iter()
+        .map(|l| {
+            let v: serde_json::Value = serde_json::from_str(l).unwrap();
+            v["skippable_subcubes_percent"].as_f64()
+        })
+        .collect();
+    assert_eq!(skippable.iter().filter(|s| s.is_none()).count(), 2);
+    assert!(skippable.contains(&Some(0.0)));
+    let _ = std::fs::remove_dir_all(&dir);
+}

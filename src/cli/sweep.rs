@@ -133,8 +133,9 @@ pub fn run(args: SweepArgs) -> Result<()> {
     );
     if summary.timings_reused > 0 {
         println!(
-            "  {} cycle runs took the timing of the same run with another transfer function \
-             (no ERT, leaping, bricks, blocking or iso: their cycles cannot differ)",
+            "  {} cycle runs took the timing of a run that times alike (another transfer \
+             function where nothing reads it, or a leaping structure that never leaps: \
+             docs/experiments.md)",
             summary.timings_reused
         );
     }

@@ -143,12 +143,12 @@ fn step_line(run: &RunSpec, view: &StepView, experiment: &str, clock_mhz: f64) -
     Ok(line)
 }
 
-/// Measurements of exact cycle runs whose timing cannot depend on the transfer function
-/// (`HardwareConfig::timing_depends_on_transfer_function`), by the run with its transfer
-/// function left out: a run that differs from a finished one only in the transfer function
-/// takes its measurements instead of simulating again. Its result line is the one simulating
-/// would write (the identity fields are the run's own; the measurements are equal by
-/// construction: `tests/sweep.rs` compares a sweep that reuses with one that cannot).
+/// Measurements of cycle runs by their timing description (`run::timing_description`): a run
+/// whose timing description equals a finished run's (the same run with another transfer
+/// function where nothing reads it, or with a leaping structure that never leaps) takes its
+/// measurements instead of simulating. Its result line is the one simulating would write: the
+/// identity fields and the map's own `skippable_subcubes_percent` are the run's, the rest is
+/// equal by construction (`tests/sweep.rs` compares sweeps that reuse with sweeps that cannot).
 #[derive(Default)]
 struct TimingReuse {
     measured: Mutex<BTreeMap<String, serde_json::Map<String, Value>>>,
@@ -156,27 +156,18 @@ struct TimingReuse {
 }
 
 impl TimingReuse {
-    /// The run's key without its transfer function, if its timing may be shared.
-    fn timing_key(run: &RunSpec) -> Option<String> {
-        let desc = &run.run;
-        if desc.model != Model::Cycle
-            || desc.sample.is_some()
-            || desc.hardware.timing_depends_on_transfer_function()
-        {
+    /// The run's timing description as a key, for the cycle model (exact or sampled).
+    fn timing_key(run: &RunSpec, prepared: &Prepared) -> Option<String> {
+        if run.run.model != Model::Cycle {
             return None;
         }
-        // The occupancy kind follows the transfer function in experiments ('0' or class); with
-        // no structure, bricks or blocking nothing reads it.
-        let mut without_tf = desc.clone();
-        without_tf.tf.clear();
-        without_tf.hardware.occupancy.kind = crate::occupancy::OccupancyKind::Zero;
-        serde_json::to_string(&without_tf).ok()
+        serde_json::to_string(&run::timing_description(&run.run, prepared)).ok()
     }
 
     /// Runs the frame, or builds its line from the measurements of a finished run with the
     /// same timing key.
     fn run_frame(&self, run: &RunSpec, prepared: &Prepared, experiment: &str) -> Result<Value> {
-        let Some(timing_key) = Self::timing_key(run) else {
+        let Some(timing_key) = Self::timing_key(run, prepared) else {
             return run_frame(run, prepared, experiment);
         };
         let known = self
@@ -186,9 +177,15 @@ impl TimingReuse {
             .get(&timing_key)
             .cloned();
         let measured = match known {
-            Some(measured) => {
+            Some(mut measured) => {
                 self.reused
                     .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                // The one measurement of the structure itself, not of the frame.
+                let field = "skippable_subcubes_percent";
+                measured.remove(field);
+                if let Some(percent) = run::skippable_subcubes_percent(prepared) {
+                    measured.insert(field.into(), json!(percent));
+                }
                 measured
             }
             None => {
@@ -278,8 +275,8 @@ pub struct SweepSummary {
     pub already_done: usize,
     pub ran: usize,
     pub torn_lines_dropped: usize,
-    /// Exact cycle runs that took the measurements of a run differing only in the transfer
-    /// function (`HardwareConfig::timing_depends_on_transfer_function`) instead of simulating.
+    /// Cycle runs that took the measurements of a run with the same timing description
+    /// (`run::timing_description`) instead of simulating.
     pub timings_reused: usize,
     pub wall_seconds: f64,
 }

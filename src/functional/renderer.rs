@@ -263,7 +263,7 @@ impl<'a> FixedRenderer<'a> {
 
     /// The space-skipping strategy this renderer was configured with.
     pub fn skipper(&self) -> ConfiguredSkipper<'_> {
-        match (&self.map, self.leaping) {
+        match (&self.map, self.effective_leaping()) {
             (Some(map), Leaping::Occupancy { hierarchy, .. }) => ConfiguredSkipper::Occupancy(
                 OccupancyLeaping::new(map, hierarchy, self.skip_policy, self.widths.skip()),
             ),
@@ -284,6 +284,31 @@ impl<'a> FixedRenderer<'a> {
                 },
                 (None, None) => ConfiguredSkipper::None(NoSkipping),
             },
+        }
+    }
+
+    /// The leaping this renderer's steps actually do: the configured leaping, except that an
+    /// occupancy map with no empty sub-cube never leaps (`OccupancyLeaping::decide` samples
+    /// every position, as `NoSkipping` does), so it is `Leaping::None`, and the hierarchy does
+    /// nothing when no 2×2×2 group of sub-cubes is empty (an empty sub-cube's leap never goes
+    /// up a level), so it is left out. The skipper is chosen by it, and runs whose renderers
+    /// leap alike take the same steps and cycles (`run::timing_description`).
+    pub fn effective_leaping(&self) -> Leaping {
+        match (&self.map, self.leaping) {
+            (Some(map), Leaping::Occupancy { .. }) if map.empty_subcubes() == 0 => Leaping::None,
+            (
+                Some(map),
+                Leaping::Occupancy {
+                    subcube,
+                    hierarchy: true,
+                    kind,
+                },
+            ) if map.empty_groups() == 0 => Leaping::Occupancy {
+                subcube,
+                hierarchy: false,
+                kind,
+            },
+            (_, leaping) => leaping,
         }
     }
 
