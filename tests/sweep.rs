@@ -715,21 +715,7 @@ size = "24x24"
 "#
         )
     };
-    let both = dir.join("both");
-    std::fs::create_dir_all(&both).unwrap();
-    let exp = both.join("exp.toml");
-    std::fs::write(&exp, text(r#"["zero", "class"]"#)).unwrap();
-    let out = dir.join("both-out");
-    let r = vizsim(&[
-        "sweep",
-        exp.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--threads",
-        "1",
-    ]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let said = String::from_utf8_lossy(&r.stdout);
+    let (said, together) = sweep_in(&dir.join("both"), &text(r#"["zero", "class"]"#), "1");
     // One thread: the two 'none' frames of the transfer function swept second reuse; the 'ert'
     // runs never do.
     assert!(
@@ -738,25 +724,36 @@ size = "24x24"
     );
     let mut separate = Vec::new();
     for tf in ["zero", "class"] {
-        let sub = dir.join(tf);
-        std::fs::create_dir_all(&sub).unwrap();
-        let exp = sub.join("exp.toml");
-        std::fs::write(&exp, text(&format!(r#"["{tf}"]"#))).unwrap();
-        let out = dir.join(format!("{tf}-out"));
-        let r = vizsim(&[
-            "sweep",
-            exp.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-        assert!(!String::from_utf8_lossy(&r.stdout).contains("took the timing"));
-        separate.extend(sorted_lines(&out.join("results.jsonl")));
+        let (said, lines) = sweep_in(&dir.join(tf), &text(&format!(r#"["{tf}"]"#)), "2");
+        assert!(!said.contains("took the timing"), "{said}");
+        separate.extend(lines);
     }
     separate.sort();
     assert_eq!(separate.len(), 8);
-    assert_eq!(sorted_lines(&out.join("results.jsonl")), separate);
+    assert_eq!(together, separate);
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Sweeps the experiment `text` into `dir` (created) on `threads` threads: what it printed and
+/// its result lines, sorted.
+fn sweep_in(dir: &Path, text: &str, threads: &str) -> (String, Vec<String>) {
+    std::fs::create_dir_all(dir).unwrap();
+    let exp = dir.join("exp.toml");
+    std::fs::write(&exp, text).unwrap();
+    let out = dir.join("out");
+    let r = vizsim(&[
+        "sweep",
+        exp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--threads",
+        threads,
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    (
+        String::from_utf8_lossy(&r.stdout).into_owned(),
+        sorted_lines(&out.join("results.jsonl")),
+    )
 }
 
 /// A leaping structure that never leaps (an occupancy map with no empty sub-cube, or a
@@ -783,36 +780,16 @@ size = "24x24"
 "#
         )
     };
-    let sweep = |name: &str, modes: &[&str], threads: &str| {
-        let sub = dir.join(name);
-        std::fs::create_dir_all(&sub).unwrap();
-        let exp = sub.join("exp.toml");
-        std::fs::write(&exp, text(modes)).unwrap();
-        let out = sub.join("out");
-        let r = vizsim(&[
-            "sweep",
-            exp.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--threads",
-            threads,
-        ]);
-        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-        (
-            String::from_utf8_lossy(&r.stdout).into_owned(),
-            sorted_lines(&out.join("results.jsonl")),
-        )
-    };
     // One thread, the 'ert' group first (the longest estimate), then the leaping groups in
     // order: both frames of 16³ take the 'ert' timing, both of 8³ + hierarchy the 8³ one.
-    let (said, together) = sweep("together", &modes, "1");
+    let (said, together) = sweep_in(&dir.join("together"), &text(&modes), "1");
     assert!(
         said.contains("4 cycle runs took the timing"),
         "the sweep says what it reused: {said}"
     );
     let mut separate = Vec::new();
     for mode in modes {
-        let (said, lines) = sweep(&mode.replace('+', "-"), &[mode], "2");
+        let (said, lines) = sweep_in(&dir.join(mode.replace('+', "-")), &text(&[mode]), "2");
         assert!(!said.contains("took the timing"), "{said}");
         separate.extend(lines);
     }
