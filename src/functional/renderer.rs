@@ -261,7 +261,8 @@ impl<'a> FixedRenderer<'a> {
         self.distance = Some(distance);
     }
 
-    /// The space-skipping strategy this renderer was configured with.
+    /// The space-skipping strategy of this renderer's effective leaping (`effective_leaping`:
+    /// the configured one, without a structure or a hierarchy that would never leap).
     pub fn skipper(&self) -> ConfiguredSkipper<'_> {
         match (&self.map, self.effective_leaping()) {
             (Some(map), Leaping::Occupancy { hierarchy, .. }) => ConfiguredSkipper::Occupancy(
