@@ -18,7 +18,7 @@ use serde_json::{json, Value};
 
 use crate::dynamic::{run_sequence, SequenceOptions, StepView};
 use crate::error::{Error, Result};
-use crate::run::{self, Prepared, Probes};
+use crate::run::{self, Measurements, Prepared, Probes};
 use spec::{dataset_label, Expansion, Model, RunSpec};
 use store::ResultStore;
 
@@ -52,17 +52,12 @@ impl Shard {
 /// where the run sits in the experiment, then the run's measurements.
 fn run_frame(run: &RunSpec, prepared: &Prepared, experiment: &str) -> Result<Value> {
     let measured = measure_frame(run, prepared)?;
-    Ok(result_line(run, experiment, prepared, measured))
+    result_line(run, experiment, prepared, &measured)
 }
 
 /// The run's measurements (the result line's fields after its identity).
-fn measure_frame(run: &RunSpec, prepared: &Prepared) -> Result<serde_json::Map<String, Value>> {
-    let report = run::execute(&run.run, prepared, Probes::default())?;
-    match serde_json::to_value(&report.measurements) {
-        Ok(Value::Object(measured)) => Ok(measured),
-        Ok(_) => Ok(serde_json::Map::new()),
-        Err(e) => Err(Error::Invalid(format!("result of run {}: {e}", run.key))),
-    }
+fn measure_frame(run: &RunSpec, prepared: &Prepared) -> Result<Measurements> {
+    Ok(run::execute(&run.run, prepared, Probes::default())?.measurements)
 }
 
 /// A result line: the run's identity, then its measurements.
@@ -70,11 +65,15 @@ fn result_line(
     run: &RunSpec,
     experiment: &str,
     prepared: &Prepared,
-    measured: serde_json::Map<String, Value>,
-) -> Value {
+    measured: &Measurements,
+) -> Result<Value> {
     let mut line = identity_line(run, experiment, &prepared.transfer_function);
-    line.as_object_mut().expect("object").extend(measured);
-    line
+    match serde_json::to_value(measured) {
+        Ok(Value::Object(measured)) => line.as_object_mut().expect("object").extend(measured),
+        Ok(_) => {}
+        Err(e) => return Err(Error::Invalid(format!("result of run {}: {e}", run.key))),
+    }
+    Ok(line)
 }
 
 /// Where a run sits in the experiment: the first fields of its result line.
@@ -149,9 +148,10 @@ fn step_line(run: &RunSpec, view: &StepView, experiment: &str, clock_mhz: f64) -
 /// measurements instead of simulating. Its result line is the one simulating would write: the
 /// identity fields and the map's own `skippable_subcubes_percent` are the run's, the rest is
 /// equal by construction (`tests/sweep.rs` compares sweeps that reuse with sweeps that cannot).
+/// Kept for every cycle run the sweep simulates: about 2 KB each (`spec::BYTES_PER_RUN`).
 #[derive(Default)]
 struct TimingReuse {
-    measured: Mutex<BTreeMap<String, serde_json::Map<String, Value>>>,
+    measured: Mutex<BTreeMap<String, Measurements>>,
     reused: std::sync::atomic::AtomicUsize,
 }
 
@@ -181,11 +181,7 @@ impl TimingReuse {
                 self.reused
                     .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 // The one measurement of the structure itself, not of the frame.
-                let field = "skippable_subcubes_percent";
-                measured.remove(field);
-                if let Some(percent) = run::skippable_subcubes_percent(prepared) {
-                    measured.insert(field.into(), json!(percent));
-                }
+                measured.skippable_subcubes_percent = run::skippable_subcubes_percent(prepared);
                 measured
             }
             None => {
@@ -197,7 +193,7 @@ impl TimingReuse {
                 measured
             }
         };
-        Ok(result_line(run, experiment, prepared, measured))
+        result_line(run, experiment, prepared, &measured)
     }
 }
 

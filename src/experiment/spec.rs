@@ -401,8 +401,10 @@ pub struct Expansion {
 
 /// The most runs one experiment may expand to: 10^6 runs took 2.2 GB to expand.
 pub const MAX_RUNS: u64 = 200_000;
-/// Memory one expanded run holds (its resolved configuration and identity), rounded up.
-const BYTES_PER_RUN: u64 = 4096;
+/// Memory one expanded run holds (its resolved configuration and identity), rounded up, and
+/// for a cycle run what a sweep keeps to reuse its timing for twins (its timing description as
+/// JSON text and its `Measurements`, about 2 KB: `experiment::TimingReuse`).
+const BYTES_PER_RUN: u64 = 6144;
 
 /// Configuration fields a mode or the tf axis sets (never an axis; `advise` leaves them out of
 /// a pair's identity).
