@@ -529,16 +529,30 @@ impl Table {
         s
     }
 
+    /// The table as CSV: numbers only in the cells, so that a tool reads them as numbers. A
+    /// table with sampled estimates gets one more column, `sampled_columns`: per row, the
+    /// labels of its cells that are estimates (separated by `;`), where the markdown writes ≈.
     pub fn csv(&self) -> String {
         let mut s = String::new();
-        let header = self.header();
+        let mut header: Vec<String> = self.header().iter().map(|h| csv_field(h)).collect();
+        let marks_sampled = !self.sampled.is_empty();
+        if marks_sampled {
+            header.push("sampled_columns".into());
+        }
         s += &header.join(",");
         s += "\n";
-        for (labels, values) in &self.rows {
-            let cells: Vec<String> = values
+        for (ri, (labels, values)) in self.rows.iter().enumerate() {
+            let mut cells: Vec<String> = values
                 .iter()
                 .map(|v| v.map(|v| format!("{v}")).unwrap_or_default())
                 .collect();
+            if marks_sampled {
+                let estimated: Vec<&str> = (0..self.columns.len())
+                    .filter(|&ci| self.sampled.contains(&(ri, ci)))
+                    .map(|ci| self.columns[ci].as_str())
+                    .collect();
+                cells.push(csv_field(&estimated.join(";")));
+            }
             let labels: Vec<String> = labels.iter().map(|l| csv_field(l)).collect();
             s += &format!("{},{}\n", labels.join(","), cells.join(","));
         }
@@ -556,7 +570,52 @@ fn csv_field(text: &str) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::{mode_label, sort_key};
+    use super::{build, mode_label, sort_key, Metric};
+
+    /// A result line of the cycle model: one frame of `mode`, sampled or exact.
+    fn line(mode: &str, frame: u64, cycles: u64, sampled: bool) -> serde_json::Value {
+        let mut line = serde_json::json!({
+            "key": format!("{mode}-{frame}"),
+            "dataset": "phantom:metaballs:32",
+            "tf": "class",
+            "mode": mode,
+            "model": "cycle",
+            "frame": frame,
+            "cycles": cycles,
+            "steps": cycles / 2,
+        });
+        if sampled {
+            line["sampled"] = true.into();
+            line["cycles_ci95"] = 10.0.into();
+        }
+        line
+    }
+
+    /// A cell with a sampled line among its frames is marked in markdown (≈ and the note) and
+    /// listed in the CSV's `sampled_columns`; counted figures (steps) are exact either way, and
+    /// a table without estimates keeps its plain CSV.
+    #[test]
+    fn sampled_estimates_are_marked_in_markdown_and_csv() {
+        let lines = [
+            line("none", 0, 1000, false),
+            line("ert", 0, 800, true),
+            line("ert", 1, 900, false),
+        ];
+        let lines: Vec<&serde_json::Value> = lines.iter().collect();
+        let rows = ["dataset".to_string()];
+        let cycles = build(&lines, Metric::Cycles, &rows, "mode", "t".into()).unwrap();
+        let markdown = cycles.markdown();
+        assert!(markdown.contains("| 1000 | ≈ 850.0 |"), "{markdown}");
+        assert!(markdown.contains("≈ estimated by sampled simulation"));
+        let csv = cycles.csv();
+        let csv_lines: Vec<&str> = csv.lines().collect();
+        assert_eq!(csv_lines[0], "dataset,none,ERT,sampled_columns");
+        assert_eq!(csv_lines[1], "phantom:metaballs:32,1000,850,ERT");
+
+        let steps = build(&lines, Metric::Steps, &rows, "mode", "t".into()).unwrap();
+        assert!(!steps.markdown().contains('≈'));
+        assert_eq!(steps.csv().lines().next(), Some("dataset,none,ERT"));
+    }
 
     #[test]
     fn every_leaping_structure_has_its_own_label_and_place() {
