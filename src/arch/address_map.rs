@@ -481,6 +481,26 @@ impl AddressMap {
             }
             return;
         }
+        if self.config.mapping == Mapping::Replicated4 {
+            // The four words share the z part; x and y take two parts each (`word` by axis).
+            let z = self.parts[2][base[2]];
+            let xs = [base[0], base[0] + 1];
+            let ys = [base[1], base[1] + 1];
+            let px = xs.map(|x| self.parts[0][x >> 1]);
+            let py = ys.map(|y| self.parts[1][y >> 1]);
+            for dy in 0..2 {
+                for dx in 0..2 {
+                    let (x, y) = (px[dx], py[dy]);
+                    f(WordAddress {
+                        module: ((xs[dx] & 1) + 2 * (ys[dy] & 1)) as u32,
+                        bank: x.bank | y.bank | z.bank,
+                        row: x.row + y.row + z.row,
+                        column: x.column + y.column + z.column,
+                    });
+                }
+            }
+            return;
+        }
         let dz_range = match self.config.mapping {
             Mapping::Interleaved8 => 0..2,
             _ => 0..1, // the word at z holds the pair (z, z+1)
@@ -629,6 +649,39 @@ fn bank_split(blocks: [usize; 3], banks: u32) -> ([u32; 3], [usize; 3]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A `replicated4` sample's words (computed by axis parts) are the layout's definition:
+    /// the voxel pair word of each (x, y) of the neighbourhood, on the module of its parities.
+    #[test]
+    fn replicated4_sample_words_are_the_definition() {
+        let base = crate::config::HardwareConfig::default_config().memory;
+        for (block, banks, dims) in [
+            ([8, 8, 8], 4, [40, 36, 20]),
+            ([4, 8, 16], 16, [27, 19, 33]),
+            ([2, 2, 2], 2, [9, 12, 7]),
+        ] {
+            let config = MemoryConfig {
+                block,
+                banks,
+                ..base.clone()
+            };
+            let map = AddressMap::new(&config, dims);
+            for z in 0..dims[2] - 1 {
+                for y in 0..dims[1] - 1 {
+                    for x in 0..dims[0] - 1 {
+                        let (words, n) = map.sample_words([x, y, z]);
+                        assert_eq!(n, 4);
+                        for (i, word) in words[..n].iter().enumerate() {
+                            let (vx, vy) = (x + i % 2, y + i / 2);
+                            let module = ((vx & 1) + 2 * (vy & 1)) as u32;
+                            let expected = map.block_word(module, [vx >> 1, vy >> 1, z]);
+                            assert_eq!(*word, expected, "sample at {:?}", [x, y, z]);
+                        }
+                    }
+                }
+            }
+        }
+    }
 
     /// The per-axis tables give the layout's definition at every coordinate.
     #[test]

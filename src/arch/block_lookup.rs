@@ -126,4 +126,8 @@ impl<M: VoxelMemory> VoxelMemory for BlockLookup<M> {
     fn issued_commands(&self, now: u64, out: &mut Vec<IssuedCommand>) {
         self.inner.issued_commands(now, out)
     }
+
+    fn record_commands(&mut self, on: bool) {
+        self.inner.record_commands(on)
+    }
 }

@@ -14,20 +14,55 @@
 
 use super::address_map::WordAddress;
 
+/// A queued word request, 24 bytes: the FIFO moves entries when one overtakes, so they are
+/// kept small. The bank and row are one `page` key (a row hit is one compare).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PendingWord {
     pub tag: u32,
-    pub addr: WordAddress,
+    /// `page(bank, row)`.
+    pub page: u32,
     /// Cycle the request entered the FIFO.
     pub entered: u64,
     pub bypassed: u32,
+    /// Columns are < 2^16 (validated: `memory.columns` <= 65536).
+    pub column: u16,
     /// An ACT was issued for this request's row (a row miss).
     pub activated: bool,
     /// Another row had to be closed first (a row conflict).
     pub precharged: bool,
 }
 
-/// No row open (rows are < 2^24, validated).
+impl PendingWord {
+    /// A request for `addr` (its module is the FIFO's own) that entered at `entered`.
+    pub fn new(tag: u32, addr: WordAddress, entered: u64) -> PendingWord {
+        debug_assert!(addr.bank < 16 && addr.row < 1 << 24 && addr.column < 1 << 16);
+        PendingWord {
+            tag,
+            page: page(addr.bank, addr.row),
+            entered,
+            bypassed: 0,
+            column: addr.column as u16,
+            activated: false,
+            precharged: false,
+        }
+    }
+
+    pub fn bank(&self) -> u32 {
+        self.page & 15
+    }
+
+    pub fn row(&self) -> u32 {
+        self.page >> 4
+    }
+}
+
+/// A (bank, row) pair as one key: banks <= 16, rows < 2^24 (validated).
+#[inline(always)]
+pub fn page(bank: u32, row: u32) -> u32 {
+    bank | row << 4
+}
+
+/// No row open: no page has all bits set (rows are < 2^24, so `page` < 2^28).
 const CLOSED: u32 = u32::MAX;
 
 /// Queue positions with a row-hit bit.
@@ -35,9 +70,9 @@ const MASKED: usize = 64;
 
 pub struct OvertakingFifo {
     /// A ring of a power-of-two capacity >= `depth`; position i of the queue (0 = oldest) is
-    /// `ring[(head + i) & ring_mask]`.
+    /// `ring[(head + i) & (ring.len() - 1)]` (the mask taken from the length, so the compiler
+    /// sees the index is in bounds).
     ring: Box<[PendingWord]>,
-    ring_mask: usize,
     head: usize,
     len: usize,
     depth: usize,
@@ -48,8 +83,8 @@ pub struct OvertakingFifo {
     max_bypass: u32,
     /// Bit i: the request at position i (< 64) targets the open row of its bank.
     hits: u64,
-    /// The open row per bank (`CLOSED` if none), as the device has it (banks <= 16).
-    open_rows: [u32; 16],
+    /// The open page per bank (`CLOSED` if none), as the device has it (banks <= 16).
+    open_pages: [u32; 16],
     /// Requests served ahead of an older one.
     pub overtakes: u64,
     /// Selections forced by the bypass bound.
@@ -62,7 +97,6 @@ impl OvertakingFifo {
         let capacity = depth.max(1).next_power_of_two();
         OvertakingFifo {
             ring: vec![PendingWord::default(); capacity].into_boxed_slice(),
-            ring_mask: capacity - 1,
             head: 0,
             len: 0,
             depth,
@@ -71,7 +105,7 @@ impl OvertakingFifo {
             window_bits: low_bits(window),
             max_bypass,
             hits: 0,
-            open_rows: [CLOSED; 16],
+            open_pages: [CLOSED; 16],
             overtakes: 0,
             forced: 0,
             peak: 0,
@@ -92,17 +126,18 @@ impl OvertakingFifo {
 
     #[inline(always)]
     fn at(&self, position: usize) -> &PendingWord {
-        &self.ring[(self.head + position) & self.ring_mask]
+        &self.ring[(self.head + position) & (self.ring.len() - 1)]
     }
 
     #[inline(always)]
     fn at_mut(&mut self, position: usize) -> &mut PendingWord {
-        &mut self.ring[(self.head + position) & self.ring_mask]
+        let mask = self.ring.len() - 1;
+        &mut self.ring[(self.head + position) & mask]
     }
 
     #[inline(always)]
-    fn is_open(&self, addr: &WordAddress) -> bool {
-        self.open_rows[addr.bank as usize & 15] == addr.row
+    fn is_open(&self, word: &PendingWord) -> bool {
+        self.open_pages[word.page as usize & 15] == word.page
     }
 
     #[inline]
@@ -110,7 +145,7 @@ impl OvertakingFifo {
         debug_assert!(self.can_accept());
         let position = self.len;
         // Branch-free: whether a new request hits follows the data.
-        let hit = (position < MASKED) & self.is_open(&word.addr);
+        let hit = (position < MASKED) & self.is_open(&word);
         self.hits |= (hit as u64) << (position & (MASKED - 1));
         *self.at_mut(position) = word;
         self.len += 1;
@@ -133,29 +168,28 @@ impl OvertakingFifo {
         if index < MASKED {
             self.hits >> index & 1 != 0
         } else {
-            self.is_open(&self.at(index).addr)
+            self.is_open(self.at(index))
         }
     }
 
     /// The device opened `row` in `bank` (an ACT): its queued requests become row hits.
     pub fn row_opened(&mut self, bank: u32, row: u32) {
-        self.open_rows[bank as usize & 15] = row;
+        let opened = page(bank, row);
+        self.open_pages[bank as usize & 15] = opened;
         for position in 0..self.len.min(MASKED) {
-            let addr = self.at(position).addr;
-            if addr.bank == bank && addr.row == row {
-                self.hits |= 1 << position;
-            }
+            // Branch-free: which requests hit follows the data.
+            self.hits |= ((self.at(position).page == opened) as u64) << position;
         }
     }
 
     /// The device closed `bank`'s row (a PRE): its queued requests are no longer row hits.
     pub fn row_closed(&mut self, bank: u32) {
-        self.open_rows[bank as usize & 15] = CLOSED;
+        self.open_pages[bank as usize & 15] = CLOSED;
         let mut bits = self.hits;
         while bits != 0 {
             let position = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            if self.at(position).addr.bank == bank {
+            if self.at(position).bank() == bank {
                 self.hits &= !(1 << position);
             }
         }
@@ -163,10 +197,8 @@ impl OvertakingFifo {
 
     /// Whether any request in the window targets `row` of `bank`.
     pub fn window_hits(&self, bank: u32, row: u32) -> bool {
-        (0..self.window.min(self.len)).any(|i| {
-            let a = &self.at(i).addr;
-            a.bank == bank && a.row == row
-        })
+        let wanted = page(bank, row);
+        (0..self.window.min(self.len)).any(|i| self.at(i).page == wanted)
     }
 
     /// The request to serve: the oldest one bypassed `max_bypass` times; else the oldest row
@@ -192,7 +224,7 @@ impl OvertakingFifo {
             return Some(in_window.trailing_zeros() as usize);
         }
         // Only windows wider than the mask look further, comparing rows.
-        let hit = (MASKED..self.window.min(self.len)).find(|&i| self.is_open(&self.at(i).addr));
+        let hit = (MASKED..self.window.min(self.len)).find(|&i| self.is_open(self.at(i)));
         Some(hit.unwrap_or(0))
     }
 
@@ -205,7 +237,7 @@ impl OvertakingFifo {
             if self.enabled && served.bypassed >= self.max_bypass {
                 self.forced += 1;
             }
-            self.head = (self.head + 1) & self.ring_mask;
+            self.head = (self.head + 1) & (self.ring.len() - 1);
             self.hits >>= 1;
         } else {
             self.overtakes += 1;
@@ -217,13 +249,13 @@ impl OvertakingFifo {
                 older.bypassed += 1;
                 *self.at_mut(position + 1) = older;
             }
-            self.head = (self.head + 1) & self.ring_mask;
+            self.head = (self.head + 1) & (self.ring.len() - 1);
             let below = low_bits(index);
             self.hits = (self.hits & below) | ((self.hits >> 1) & !below);
         }
         self.len -= 1;
         // The request now at the last masked position came from beyond the mask.
-        if self.len >= MASKED && self.is_open(&self.at(MASKED - 1).addr) {
+        if self.len >= MASKED && self.is_open(self.at(MASKED - 1)) {
             self.hits |= 1 << (MASKED - 1);
         }
         served
@@ -244,16 +276,13 @@ mod tests {
     use super::*;
 
     fn word(tag: u32, bank: u32, row: u32) -> PendingWord {
-        PendingWord {
-            tag,
-            addr: WordAddress {
-                module: 0,
-                bank,
-                row,
-                column: tag,
-            },
-            ..PendingWord::default()
-        }
+        let addr = WordAddress {
+            module: 0,
+            bank,
+            row,
+            column: tag & 0xffff,
+        };
+        PendingWord::new(tag, addr, 0)
     }
 
     /// The selection the FIFO made before the row-hit mask: a row compare per request.
@@ -261,7 +290,7 @@ mod tests {
         if fifo.len == 0 {
             return None;
         }
-        let open = |i: usize| fifo.is_open(&fifo.at(i).addr);
+        let open = |i: usize| fifo.is_open(fifo.at(i));
         if !fifo.enabled || open(0) || fifo.at(0).bypassed >= fifo.max_bypass {
             return Some(0);
         }
@@ -307,7 +336,7 @@ mod tests {
                     _ => fifo.row_closed(next(4) as u32),
                 }
                 for i in 0..fifo.len.min(MASKED) {
-                    assert_eq!(fifo.hits >> i & 1 == 1, fifo.is_open(&fifo.at(i).addr));
+                    assert_eq!(fifo.hits >> i & 1 == 1, fifo.is_open(fifo.at(i)));
                 }
             }
         }

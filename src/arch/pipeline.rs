@@ -255,6 +255,7 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
         mut checkpoints,
     } = options;
     let mut issued_commands: Vec<IssuedCommand> = Vec::new();
+    memory.record_commands(command_trace.is_some() || waveform.is_some());
     let (w, h) = (camera.width, camera.height);
     // A ray's id indexes the per-ray state: its pixel for the whole frame, its position in
     // `rays` for a subset.

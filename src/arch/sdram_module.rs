@@ -112,12 +112,79 @@ impl MemoryImage {
     }
 }
 
+/// A module's voxel FIFO: a ring of (cycle the data is there, tag) of a power-of-two capacity
+/// at least the depth (the controller never puts more in), without `VecDeque`'s growth checks
+/// on the read path.
+struct VoxelFifo {
+    ring: Box<[(u64, u32)]>,
+    head: usize,
+    len: usize,
+    /// The oldest word's cycle (`u64::MAX` when empty): the per-cycle check is one compare.
+    front_ready: u64,
+}
+
+impl VoxelFifo {
+    fn new(depth: usize) -> VoxelFifo {
+        VoxelFifo {
+            ring: vec![(0, 0); depth.max(1).next_power_of_two()].into_boxed_slice(),
+            head: 0,
+            len: 0,
+            front_ready: u64::MAX,
+        }
+    }
+
+    #[inline(always)]
+    fn len(&self) -> usize {
+        self.len
+    }
+
+    #[inline(always)]
+    fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    #[inline(always)]
+    fn push_back(&mut self, word: (u64, u32)) {
+        let mask = self.ring.len() - 1;
+        assert!(self.len <= mask, "voxel FIFO over its capacity");
+        self.ring[(self.head + self.len) & mask] = word;
+        if self.len == 0 {
+            self.front_ready = word.0;
+        }
+        self.len += 1;
+    }
+
+    /// The cycle the oldest word's data is there, `u64::MAX` if there is none.
+    #[inline(always)]
+    fn front_ready(&self) -> u64 {
+        self.front_ready
+    }
+
+    /// Takes the oldest word's tag if its data is there by `now`.
+    #[inline(always)]
+    fn pop_ready(&mut self, now: u64) -> Option<u32> {
+        if now < self.front_ready {
+            return None;
+        }
+        let mask = self.ring.len() - 1;
+        let tag = self.ring[self.head & mask].1;
+        self.head = (self.head + 1) & mask;
+        self.len -= 1;
+        self.front_ready = if self.len == 0 {
+            u64::MAX
+        } else {
+            self.ring[self.head & mask].0
+        };
+        Some(tag)
+    }
+}
+
 pub struct SdramModule {
     device: SdramDevice,
     fifo: OvertakingFifo,
     /// Words read: (cycle the data is there, tag), in read order; its length counts in-flight
     /// reads, so it never exceeds the voxel FIFO depth.
-    voxel_fifo: VecDeque<(u64, u32)>,
+    voxel_fifo: VoxelFifo,
     voxel_depth: usize,
     cl: u64,
     policy: RowPolicy,
@@ -130,6 +197,9 @@ pub struct SdramModule {
     /// the row of the last ACT.
     last_command: IssuedCommand,
     last_act_row: u32,
+    /// Keep `last_command` (on unless turned off: a simulation without trace or waveform does
+    /// not read it, and storing it is a tenth of a READ's cost).
+    records_commands: bool,
     /// The controller sleeps until this cycle (0 after a push: run next cycle).
     wake_at: u64,
     /// The last cycle the controller ran, and whether it was busy (requests queued or a
@@ -157,7 +227,7 @@ impl SdramModule {
                 config.overtaking_window,
                 config.max_bypass,
             ),
-            voxel_fifo: VecDeque::with_capacity(config.voxel_fifo_depth),
+            voxel_fifo: VoxelFifo::new(config.voxel_fifo_depth),
             voxel_depth: config.voxel_fifo_depth,
             cl: timing.cl as u64,
             policy: config.row_policy,
@@ -175,6 +245,7 @@ impl SdramModule {
                 tag: 0,
             },
             last_act_row: 0,
+            records_commands: true,
             wake_at: 0,
             last_step: 0,
             busy_while_asleep: false,
@@ -231,14 +302,7 @@ impl SdramModule {
 
     pub fn push(&mut self, tag: u32, addr: WordAddress, now: u64) {
         self.wake_at = 0;
-        self.fifo.push(PendingWord {
-            tag,
-            addr,
-            entered: now,
-            bypassed: 0,
-            activated: false,
-            precharged: false,
-        });
+        self.fifo.push(PendingWord::new(tag, addr, now));
     }
 
     /// Issues `cmd` at `now` if the timing rules allow it, else returns the earliest cycle
@@ -280,15 +344,17 @@ impl SdramModule {
             Command::Ref => self.stats.refreshes += 1,
             Command::Write { .. } => self.stats.writes += 1,
         }
-        self.last_command = IssuedCommand {
-            cycle: now,
-            module: 0,
-            kind: cmd.kind(),
-            bank: bank as u32,
-            row,
-            column,
-            tag,
-        };
+        if self.records_commands {
+            self.last_command = IssuedCommand {
+                cycle: now,
+                module: 0,
+                kind: cmd.kind(),
+                bank: bank as u32,
+                row,
+                column,
+                tag,
+            };
+        }
         Ok(())
     }
 
@@ -386,7 +452,7 @@ impl SdramModule {
             return if pending_close { now + 1 } else { u64::MAX };
         };
         let request = *self.fifo.get(index);
-        let bank = request.addr.bank as usize;
+        let bank = request.bank() as usize;
         // The FIFO's row-hit bit says whether the request's row is open; a miss needs its bank
         // closed first if another row is open.
         let command = if self.fifo.is_hit(index) {
@@ -396,14 +462,14 @@ impl SdramModule {
             }
             Command::Read {
                 bank,
-                column: request.addr.column,
+                column: request.column as u32,
             }
         } else if self.device.is_open(bank) {
             Command::Pre { bank }
         } else {
             Command::Act {
                 bank,
-                row: request.addr.row,
+                row: request.row(),
             }
         };
         if let Err(ready) = self.try_issue(command, now, request.tag) {
@@ -476,22 +542,13 @@ impl SdramModule {
 
     /// The oldest word whose data is in the voxel FIFO by `now`.
     pub fn pop_word(&mut self, now: u64) -> Option<u32> {
-        match self.voxel_fifo.front() {
-            Some(&(ready, tag)) if ready <= now => {
-                self.voxel_fifo.pop_front();
-                Some(tag)
-            }
-            _ => None,
-        }
+        self.voxel_fifo.pop_ready(now)
     }
 
     /// The earliest cycle after `now` at which this module could change anything: its
     /// controller wakes, or a word's data reaches the voxel FIFO.
     pub fn next_event(&self, now: u64) -> Option<u64> {
-        let data = self
-            .voxel_fifo
-            .front()
-            .map_or(u64::MAX, |&(ready, _)| ready);
+        let data = self.voxel_fifo.front_ready();
         let next = self.wake_at.min(data);
         (next != u64::MAX).then(|| next.max(now + 1))
     }
@@ -668,6 +725,12 @@ impl VoxelMemory for SdramMemory {
     fn probe(&self, modules: &mut Vec<ModuleProbe>) {
         modules.clear();
         modules.extend(self.modules.iter().map(|m| m.probe(self.now)));
+    }
+
+    fn record_commands(&mut self, on: bool) {
+        for module in &mut self.modules {
+            module.records_commands = on;
+        }
     }
 
     fn issued_commands(&self, now: u64, out: &mut Vec<IssuedCommand>) {
