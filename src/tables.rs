@@ -531,10 +531,14 @@ impl Table {
 
     /// The table as CSV: numbers only in the cells, so that a tool reads them as numbers. A
     /// table with sampled estimates gets one more column, `sampled_columns`: per row, the
-    /// labels of its cells that are estimates (separated by `;`), where the markdown writes ≈.
+    /// header labels of its cells that are estimates (separated by `;`), where the markdown
+    /// writes ≈.
     pub fn csv(&self) -> String {
         let mut s = String::new();
-        let mut header: Vec<String> = self.header().iter().map(|h| csv_field(h)).collect();
+        let labels = self.header();
+        // The value columns' labels as the header writes them.
+        let column_labels = &labels[self.row_fields.len()..];
+        let mut header: Vec<String> = labels.iter().map(|h| csv_field(h)).collect();
         let marks_sampled = !self.sampled.is_empty();
         if marks_sampled {
             header.push("sampled_columns".into());
@@ -549,7 +553,7 @@ impl Table {
             if marks_sampled {
                 let estimated: Vec<&str> = (0..self.columns.len())
                     .filter(|&ci| self.sampled.contains(&(ri, ci)))
-                    .map(|ci| self.columns[ci].as_str())
+                    .map(|ci| column_labels[ci].as_str())
                     .collect();
                 cells.push(csv_field(&estimated.join(";")));
             }
@@ -615,6 +619,25 @@ mod tests {
         let steps = build(&lines, Metric::Steps, &rows, "mode", "t".into()).unwrap();
         assert!(!steps.markdown().contains('≈'));
         assert_eq!(steps.csv().lines().next(), Some("dataset,none,ERT"));
+
+        // A swept column field: the marks name the columns as the header does.
+        let mut swept = [line("ert", 0, 1000, false), line("ert", 0, 800, true)];
+        for (line, banks) in swept.iter_mut().zip([4, 8]) {
+            line["key"] = format!("banks-{banks}").into();
+            line["axes"] = serde_json::json!({ "memory.banks": banks });
+        }
+        let swept: Vec<&serde_json::Value> = swept.iter().collect();
+        let by_banks = build(&swept, Metric::Cycles, &rows, "memory.banks", "t".into()).unwrap();
+        let csv = by_banks.csv();
+        let csv_lines: Vec<&str> = csv.lines().collect();
+        assert_eq!(
+            csv_lines[0],
+            "dataset,memory.banks = 4,memory.banks = 8,sampled_columns"
+        );
+        assert_eq!(
+            csv_lines[1],
+            "phantom:metaballs:32,1000,800,memory.banks = 8"
+        );
     }
 
     #[test]

@@ -661,6 +661,7 @@ mod tests {
             ([2, 2, 2], 2, [9, 12, 7]),
         ] {
             let config = MemoryConfig {
+                mapping: Mapping::Replicated4,
                 block,
                 banks,
                 ..base.clone()

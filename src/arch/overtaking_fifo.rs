@@ -285,12 +285,16 @@ mod tests {
         PendingWord::new(tag, addr, 0)
     }
 
-    /// The selection the FIFO made before the row-hit mask: a row compare per request.
-    fn reference_select(fifo: &OvertakingFifo) -> Option<usize> {
+    /// The selection the FIFO made before the row-hit mask and the page keys: a bank and row
+    /// compare per request against `open_rows`, the test's own record of the open rows.
+    fn reference_select(fifo: &OvertakingFifo, open_rows: &[Option<u32>; 16]) -> Option<usize> {
         if fifo.len == 0 {
             return None;
         }
-        let open = |i: usize| fifo.is_open(fifo.at(i));
+        let open = |i: usize| {
+            let w = fifo.at(i);
+            open_rows[w.bank() as usize] == Some(w.row())
+        };
         if !fifo.enabled || open(0) || fifo.at(0).bypassed >= fifo.max_bypass {
             return Some(0);
         }
@@ -301,8 +305,27 @@ mod tests {
         )
     }
 
-    /// Random pushes, takes, ACTs and PREs (a small xorshift generator): the mask's selection
-    /// equals the row compares', for masked and unmasked depths.
+    /// A request's page key gives back its bank, row and column at the extremes the
+    /// configuration allows (16 banks, 2^24 rows, 65,536 columns); an entry is 24 bytes.
+    #[test]
+    fn page_keys_keep_bank_row_and_column() {
+        for (bank, row, column) in [(0, 0, 0), (15, (1 << 24) - 1, 65_535), (7, 12_345, 511)] {
+            let addr = WordAddress {
+                module: 3,
+                bank,
+                row,
+                column,
+            };
+            let w = PendingWord::new(9, addr, 77);
+            assert_eq!((w.bank(), w.row(), w.column as u32), (bank, row, column));
+            assert_ne!(w.page, CLOSED);
+        }
+        assert_eq!(std::mem::size_of::<PendingWord>(), 24);
+    }
+
+    /// Random pushes, takes, ACTs and PREs (a small xorshift generator) over banks 0..16 and
+    /// rows up to the largest: the mask's selection equals the bank-and-row compares', for
+    /// masked and unmasked depths.
     #[test]
     fn hit_mask_selects_as_row_compares_do() {
         for (depth, window) in [(16, 8), (16, 16), (100, 90), (70, 3)] {
@@ -314,29 +337,40 @@ mod tests {
                 state ^= state << 17;
                 state % n
             };
+            let banks = [0, 5, 15];
+            let rows = [0, 1, (1 << 24) - 1];
+            let mut open_rows = [None; 16];
             let mut tag = 0;
             for _ in 0..200_000 {
                 match next(8) {
                     0..=3 if fifo.can_accept() => {
                         tag += 1;
-                        fifo.push(word(tag, next(4) as u32, next(3) as u32));
+                        let (bank, row) = (banks[next(3) as usize], rows[next(3) as usize]);
+                        fifo.push(word(tag, bank, row));
                     }
                     4 | 5 => {
                         let choice = fifo.select();
-                        assert_eq!(choice, reference_select(&fifo));
+                        assert_eq!(choice, reference_select(&fifo, &open_rows));
                         if let Some(i) = choice {
                             fifo.take(i);
                         }
                     }
                     6 => {
-                        let bank = next(4) as u32;
+                        let (bank, row) = (banks[next(3) as usize], rows[next(3) as usize]);
                         fifo.row_closed(bank);
-                        fifo.row_opened(bank, next(3) as u32);
+                        fifo.row_opened(bank, row);
+                        open_rows[bank as usize] = Some(row);
                     }
-                    _ => fifo.row_closed(next(4) as u32),
+                    _ => {
+                        let bank = banks[next(3) as usize];
+                        fifo.row_closed(bank);
+                        open_rows[bank as usize] = None;
+                    }
                 }
                 for i in 0..fifo.len.min(MASKED) {
-                    assert_eq!(fifo.hits >> i & 1 == 1, fifo.is_open(fifo.at(i)));
+                    let w = fifo.at(i);
+                    let hit = open_rows[w.bank() as usize] == Some(w.row());
+                    assert_eq!(fifo.hits >> i & 1 == 1, hit);
                 }
             }
         }

@@ -182,8 +182,8 @@ mod tests {
             .min_by_key(|&i| keys[i])
     }
 
-    /// Random key sets (many ties, some slots not ready) and pointers: the branch-free minimum
-    /// picks the slot the definition picks.
+    /// Random key sets (many ties, some slots not ready) and pointers: the selection picks the
+    /// slot the definition picks.
     #[test]
     fn lagging_first_picks_the_least_k_first_from_the_pointer() {
         let mut state = 0x2545_f491_4f6c_dd1du64;

@@ -193,8 +193,8 @@ pub struct SdramModule {
     refresh_interval: Option<u64>,
     next_refresh: u64,
     refresh_pending: bool,
-    /// For waveforms and command traces: the last command issued (cycle `u64::MAX`: none yet),
-    /// the row of the last ACT.
+    /// For waveforms and command traces: the last command issued (cycle `u64::MAX`: none yet;
+    /// kept only while `records_commands`), the row of the last ACT.
     last_command: IssuedCommand,
     last_act_row: u32,
     /// Keep `last_command` (on unless turned off: a simulation without trace or waveform does

@@ -48,8 +48,9 @@ pub trait VoxelMemory {
     /// Appends the memory commands issued in cycle `now` (the last cycle stepped), in module
     /// order; none for models without commands. Called only while a command trace records.
     fn issued_commands(&self, _now: u64, _out: &mut Vec<IssuedCommand>) {}
-    /// Whether to keep what `issued_commands` and `probe` report (models with commands keep it
-    /// unless told not to; the pipeline turns it off when it records no trace or waveform).
+    /// Whether to keep the last issued command (for `issued_commands` and the command fields of
+    /// `probe`): models with commands keep it unless told not to; the pipeline turns it off
+    /// when it records no trace or waveform.
     fn record_commands(&mut self, _on: bool) {}
 }
 
