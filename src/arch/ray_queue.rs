@@ -182,29 +182,21 @@ mod tests {
             .min_by_key(|&i| keys[i])
     }
 
-    /// Random key sets (many ties, some slots not ready) and pointers: the selection picks the
-    /// slot the definition picks.
-    #[test]
-    fn lagging_first_picks_the_least_k_first_from_the_pointer() {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = |n: u64| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state % n
-        };
-        for _ in 0..20_000 {
-            let rays = 1 + next(20) as usize;
-            let mut queue = RayQueue::new(rays, RaySelection::LaggingFirst);
-            for key in queue.keys.iter_mut() {
-                *key = match next(4) {
-                    0 => NOT_READY,
-                    _ => next(6),
-                };
+    proptest::proptest! {
+        /// Any key set (small keys: many ties; some slots not ready) and pointer: the
+        /// selection picks the slot the definition picks.
+        #[test]
+        fn lagging_first_picks_the_least_k_first_from_the_pointer(
+            keys in proptest::collection::vec(proptest::option::of(0u64..6), 1..20),
+            pointer in 0usize..20,
+        ) {
+            let mut queue = RayQueue::new(keys.len(), RaySelection::LaggingFirst);
+            for (slot, key) in queue.keys.iter_mut().zip(&keys) {
+                *slot = key.unwrap_or(NOT_READY);
             }
-            queue.next_round_robin = next(rays as u64) as usize;
+            queue.next_round_robin = pointer % keys.len();
             let expected = reference(&queue.keys, queue.next_round_robin);
-            assert_eq!(queue.select(), expected, "{:?}", queue.keys);
+            proptest::prop_assert_eq!(queue.select(), expected);
         }
     }
 }

@@ -104,6 +104,12 @@ pub fn run(args: SweepArgs) -> Result<()> {
         per_thread(tally.seconds[0]),
         per_thread(tally.seconds[1]),
     );
+    if tally.pending[1] > 0 {
+        println!(
+            "  the cycle model's estimate counts every run; runs that time alike share one \
+             simulation (docs/experiments.md), so the sweep may take less"
+        );
+    }
     if omitted.duplicates > 0 {
         println!(
             "  {} runs are listed more than once (repeated datasets, frames or axis values): each runs once",
