@@ -70,8 +70,8 @@ const MASKED: usize = 64;
 
 pub struct OvertakingFifo {
     /// A ring of a power-of-two capacity >= `depth`; position i of the queue (0 = oldest) is
-    /// `ring[(head + i) & (ring.len() - 1)]` (the mask taken from the length, so the compiler
-    /// sees the index is in bounds).
+    /// `ring[(head + i) & (ring.len() - 1)]` (the mask is taken from the length: no second
+    /// field to keep in step with it).
     ring: Box<[PendingWord]>,
     head: usize,
     len: usize,
