@@ -208,20 +208,23 @@ impl OvertakingFifo {
         if self.len == 0 {
             return None;
         }
-        // The oldest request is served if overtaking is off, if it is a row hit itself (the
-        // common case), or if it reached the bypass bound.
-        if !self.enabled || self.hits & 1 != 0 {
-            return Some(0);
-        }
         // Every take bypasses all requests older than the one taken, so bypass counts never
         // rise along the queue: if any request in the window reached the bound, the oldest did.
         debug_assert!((1..self.len).all(|i| self.at(i - 1).bypassed >= self.at(i).bypassed));
-        if self.at(0).bypassed >= self.max_bypass {
-            return Some(0);
-        }
+        // The oldest request is served if overtaking is off, if it is a row hit itself (the
+        // common case), or if it reached the bypass bound; else the oldest hit in the window,
+        // if any. Chosen without a branch on which case holds (it follows the data).
+        let oldest =
+            !self.enabled | (self.hits & 1 != 0) | (self.at(0).bypassed >= self.max_bypass);
         let in_window = self.hits & self.window_bits;
-        if in_window != 0 {
-            return Some(in_window.trailing_zeros() as usize);
+        let candidates = if oldest {
+            1
+        } else {
+            in_window | (in_window == 0) as u64
+        };
+        let choice = candidates.trailing_zeros() as usize;
+        if choice != 0 || oldest || self.window <= MASKED {
+            return Some(choice);
         }
         // Only windows wider than the mask look further, comparing rows.
         let hit = (MASKED..self.window.min(self.len)).find(|&i| self.is_open(self.at(i)));
@@ -233,26 +236,21 @@ impl OvertakingFifo {
     pub fn take(&mut self, index: usize) -> PendingWord {
         debug_assert!(index < self.len);
         let served = *self.at(index);
-        if index == 0 {
-            if self.enabled && served.bypassed >= self.max_bypass {
-                self.forced += 1;
-            }
-            self.head = (self.head + 1) & (self.ring.len() - 1);
-            self.hits >>= 1;
-        } else {
-            self.overtakes += 1;
-            // The older requests move one place towards the younger end, each counting one
-            // bypass; the younger ones stay where they are. Logical positions below `index`
-            // keep their number, those above move down by one.
-            for position in (0..index).rev() {
-                let mut older = *self.at(position);
-                older.bypassed += 1;
-                *self.at_mut(position + 1) = older;
-            }
-            self.head = (self.head + 1) & (self.ring.len() - 1);
-            let below = low_bits(index);
-            self.hits = (self.hits & below) | ((self.hits >> 1) & !below);
+        // Counted without a branch on whether the oldest was taken (it follows the data).
+        let overtook = index != 0;
+        self.forced += (!overtook & self.enabled & (served.bypassed >= self.max_bypass)) as u64;
+        self.overtakes += overtook as u64;
+        // The older requests move one place towards the younger end, each counting one
+        // bypass; the younger ones stay where they are. Logical positions below `index`
+        // keep their number, those above move down by one.
+        for position in (0..index).rev() {
+            let mut older = *self.at(position);
+            older.bypassed += 1;
+            *self.at_mut(position + 1) = older;
         }
+        self.head = (self.head + 1) & (self.ring.len() - 1);
+        let below = low_bits(index);
+        self.hits = (self.hits & below) | ((self.hits >> 1) & !below);
         self.len -= 1;
         // The request now at the last masked position came from beyond the mask.
         if self.len >= MASKED && self.is_open(self.at(MASKED - 1)) {
@@ -262,13 +260,10 @@ impl OvertakingFifo {
     }
 }
 
-/// A mask of the lowest `n` bits (all 64 for n >= 64).
+/// A mask of the lowest `n` bits (all 64 for n >= 64), without a branch.
+#[inline(always)]
 fn low_bits(n: usize) -> u64 {
-    if n >= 64 {
-        u64::MAX
-    } else {
-        (1u64 << n) - 1
-    }
+    ((1u64 << (n & 63)) - 1) | ((n >= 64) as u64).wrapping_neg()
 }
 
 #[cfg(test)]
@@ -325,9 +320,10 @@ mod tests {
 
     /// Random pushes, takes, ACTs and PREs (a small xorshift generator) over banks 0..16 and
     /// rows up to the largest: the mask's selection equals the bank-and-row compares', for
-    /// masked and unmasked depths.
+    /// masked and unmasked depths, and the overtake and forced counts are as defined.
     #[test]
     fn hit_mask_selects_as_row_compares_do() {
+        let mut exercised = (0u64, 0u64);
         for (depth, window) in [(16, 8), (16, 16), (100, 90), (70, 3)] {
             let mut fifo = OvertakingFifo::new(depth, true, window, 8);
             let mut state = 0x9e37_79b9_7f4a_7c15u64;
@@ -341,6 +337,7 @@ mod tests {
             let rows = [0, 1, (1 << 24) - 1];
             let mut open_rows = [None; 16];
             let mut tag = 0;
+            let (mut overtakes, mut forced) = (0u64, 0u64);
             for _ in 0..200_000 {
                 match next(8) {
                     0..=3 if fifo.can_accept() => {
@@ -352,6 +349,10 @@ mod tests {
                         let choice = fifo.select();
                         assert_eq!(choice, reference_select(&fifo, &open_rows));
                         if let Some(i) = choice {
+                            // The counters as defined: an overtake when a younger request is
+                            // served, a forced selection when the oldest had reached the bound.
+                            overtakes += (i != 0) as u64;
+                            forced += (i == 0 && fifo.at(0).bypassed >= fifo.max_bypass) as u64;
                             fifo.take(i);
                         }
                     }
@@ -373,6 +374,13 @@ mod tests {
                     assert_eq!(fifo.hits >> i & 1 == 1, hit);
                 }
             }
+            assert_eq!((fifo.overtakes, fifo.forced), (overtakes, forced));
+            exercised.0 += overtakes;
+            exercised.1 += forced;
         }
+        assert!(
+            exercised.0 > 0 && exercised.1 > 0,
+            "the traffic exercises both counters"
+        );
     }
 }

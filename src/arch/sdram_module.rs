@@ -664,8 +664,13 @@ fn longest_legal_wait(config: &MemoryConfig, timing: &SdramTiming) -> u64 {
 
 impl VoxelMemory for SdramMemory {
     fn try_push(&mut self, request: SampleRequest, now: u64) -> bool {
-        // A sample's words go one to each module: it enters only if every module has room.
-        if !self.modules.iter().all(SdramModule::can_accept) {
+        // A sample's words go one to each module: it enters only if every module has room
+        // (every module asked, without a branch per module).
+        if !self
+            .modules
+            .iter()
+            .fold(true, |room, m| room & m.can_accept())
+        {
             return false;
         }
         let tag = request.tag as usize;
@@ -701,9 +706,11 @@ impl VoxelMemory for SdramMemory {
                 }
                 let missing = &mut self.missing[tag as usize];
                 *missing -= 1;
-                if *missing == 0 {
-                    completed.push(tag as u64);
-                }
+                // Without a branch on whether this was the sample's last word (it follows
+                // the data): pushed, then kept only if so.
+                let kept = completed.len() + (*missing == 0) as usize;
+                completed.push(tag as u64);
+                completed.truncate(kept);
             }
         }
     }
