@@ -4,6 +4,9 @@
 //! else the 256^3 sphere phantom), 256x256, one sample per voxel distance, no ERT, one thread
 //! (the per-core figure). divan reports samples per second as its item throughput.
 //! `float_256_packet`: the same frame with each packet width of the float reference.
+//! `cycle_256`: the cycle model (pipeline and SDRAM) on the same volume, 128x128, orbit 5/72;
+//! `memory_256`: the SDRAM model alone on that frame's recorded requests. Both report simulated
+//! cycles per second.
 
 use std::sync::OnceLock;
 
@@ -139,6 +142,139 @@ fn bench_fixed(bencher: divan::Bencher, config: &vizsim::config::HardwareConfig,
 
 /// The cycle-accurate pipeline with the SDRAM model (default configuration), one 256³ frame at
 /// 128×128 (a 256×256 frame takes four times as long); divan's items are simulated cycles.
+/// The SDRAM memory behind the pipeline, recording the sample requests it accepts.
+struct Recording<M> {
+    memory: M,
+    requests: Vec<vizsim::arch::voxel_memory::SampleRequest>,
+}
+
+impl<M: vizsim::arch::voxel_memory::VoxelMemory> vizsim::arch::voxel_memory::VoxelMemory
+    for Recording<M>
+{
+    fn try_push(&mut self, request: vizsim::arch::voxel_memory::SampleRequest, now: u64) -> bool {
+        let entered = self.memory.try_push(request, now);
+        if entered {
+            self.requests.push(request);
+        }
+        entered
+    }
+    fn try_push_word(&mut self, tag: u64, voxel: [usize; 3], now: u64) -> bool {
+        self.memory.try_push_word(tag, voxel, now)
+    }
+    fn step(&mut self, now: u64, completed: &mut Vec<u64>) {
+        self.memory.step(now, completed)
+    }
+    fn is_idle(&self) -> bool {
+        self.memory.is_idle()
+    }
+    fn account_cycles(&mut self, cycles: u64) {
+        self.memory.account_cycles(cycles)
+    }
+    fn next_event(&self, now: u64) -> Option<u64> {
+        self.memory.next_event(now)
+    }
+    fn stats_json(&self) -> serde_json::Value {
+        self.memory.stats_json()
+    }
+    fn longest_legal_wait(&self) -> u64 {
+        self.memory.longest_legal_wait()
+    }
+    fn record_commands(&mut self, on: bool) {
+        self.memory.record_commands(on)
+    }
+}
+
+/// `memory_256`: the SDRAM model alone. `cycle_256`'s frame is simulated once with its memory
+/// recording the sample requests it accepts, in order; each iteration replays them on a fresh
+/// memory, one cycle at a time: step the memory, then enter the next request if its
+/// compositing-buffer tag is free again and every module has room. The replay has about the
+/// frame's cycles and reads, without the pipeline's work, so divan's item throughput
+/// (simulated cycles per second) is what the memory side alone costs per cycle.
+#[divan::bench(sample_count = 5)]
+fn memory_256(bencher: divan::Bencher) {
+    use vizsim::arch::pipeline::simulate;
+    use vizsim::arch::sdram_module::SdramMemory;
+    use vizsim::arch::voxel_memory::VoxelMemory;
+    use vizsim::config::HardwareConfig;
+    use vizsim::functional::renderer::{FixedRenderer, Leaping};
+    let volume = volume_256();
+    let tf = transfer::resolve("class", &volume.name).unwrap();
+    let config = HardwareConfig::default_config();
+    let renderer = FixedRenderer::new(
+        volume,
+        &tf,
+        &RenderSettings::default(),
+        &config,
+        Leaping::None,
+    )
+    .unwrap();
+    let camera = cycle_camera(volume);
+    let new_memory = || SdramMemory::new(&config.memory, &config.sdram, volume.dims, 100.0);
+    let mut recording = Recording {
+        memory: new_memory(),
+        requests: Vec::new(),
+    };
+    let frame_cycles = simulate(
+        &renderer,
+        &camera,
+        &renderer.skipper(),
+        &mut recording,
+        &config,
+        true,
+        None,
+    )
+    .unwrap()
+    .stats
+    .cycles;
+    let requests = recording.requests;
+    let replay = || {
+        let mut memory = new_memory();
+        memory.record_commands(false);
+        let mut in_flight = vec![false; config.compositing.buffer_capacity];
+        let mut completed = Vec::new();
+        let (mut now, mut next) = (0u64, 0usize);
+        while next < requests.len() || !memory.is_idle() {
+            completed.clear();
+            memory.step(now, &mut completed);
+            for &tag in &completed {
+                in_flight[tag as usize] = false;
+            }
+            if let Some(&request) = requests.get(next) {
+                if !in_flight[request.tag as usize] && memory.try_push(request, now) {
+                    in_flight[request.tag as usize] = true;
+                    next += 1;
+                }
+            }
+            memory.account_cycles(1);
+            now += 1;
+        }
+        assert_eq!(
+            memory.stats_json()["reads"].as_u64(),
+            Some(4 * requests.len() as u64),
+            "every request's four words read"
+        );
+        now
+    };
+    let cycles = replay();
+    println!(
+        "memory_256: {} requests of the cycle_256 frame ({frame_cycles} cycles), replayed in {cycles} cycles",
+        requests.len()
+    );
+    bencher.counter(ItemsCount::new(cycles)).bench(replay);
+}
+
+/// `cycle_256`'s view: 128x128, orbit 5/72.
+fn cycle_camera(volume: &Volume) -> Camera {
+    Camera::for_volume(
+        glam::Vec3::from(volume.extent()),
+        View::Orbit { k: 5, n: 72 },
+        Projection::Ortho,
+        128,
+        128,
+    )
+    .unwrap()
+}
+
 #[divan::bench(sample_count = 2)]
 fn cycle_256(bencher: divan::Bencher) {
     use vizsim::arch::pipeline::simulate;
@@ -156,14 +292,7 @@ fn cycle_256(bencher: divan::Bencher) {
         Leaping::None,
     )
     .unwrap();
-    let camera = Camera::for_volume(
-        glam::Vec3::from(volume.extent()),
-        View::Orbit { k: 5, n: 72 },
-        Projection::Ortho,
-        128,
-        128,
-    )
-    .unwrap();
+    let camera = cycle_camera(volume);
     let run = || {
         let mut memory = SdramMemory::new(&config.memory, &config.sdram, volume.dims, 100.0);
         simulate(
