@@ -86,6 +86,44 @@ fn render_writes_a_png_and_json() {
         .map(|r| r.split(',').nth(3).unwrap().parse::<u64>().unwrap())
         .sum();
     assert_eq!(total, stats["stats"]["samples"].as_u64().unwrap());
+
+    // Iso mode with bricks: the per-ray refinement samples and cut positions are columns too,
+    // and add up to the frame's totals.
+    let out = vizsim(&[
+        "render",
+        "--dataset",
+        "phantom:sphere:32",
+        "--size",
+        "40x30",
+        "--set",
+        "iso.enabled=true",
+        "--bricks",
+        "8",
+        "-o",
+        png.to_str().unwrap(),
+        "--rays",
+        rays.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(out.status.success());
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let text = std::fs::read_to_string(&rays).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let column_total = |name: &str| -> u64 {
+        let at = header.iter().position(|h| *h == name).expect(name);
+        text.lines()
+            .skip(1)
+            .map(|r| r.split(',').nth(at).unwrap().parse::<u64>().unwrap())
+            .sum()
+    };
+    let refinement = stats["refinement_samples"].as_u64().unwrap();
+    let cut = stats["ray_range"]["positions_cut"].as_u64().unwrap();
+    assert!(refinement > 0 && cut > 0, "the frame refines and cuts");
+    assert_eq!(column_total("refinement_samples"), refinement);
+    assert_eq!(column_total("positions_cut"), cut);
+    assert_eq!(column_total("samples"), stats["samples"].as_u64().unwrap());
 }
 
 #[test]

@@ -181,13 +181,13 @@ impl Frame {
             use std::io::Write;
             writeln!(
                 w,
-                "px,py,hit,samples,leaps,skipped,first_sample,end_sample,t_enter,t_exit,terminated_early,leap_samples"
+                "px,py,hit,samples,leaps,skipped,first_sample,end_sample,t_enter,t_exit,terminated_early,leap_samples,positions_cut,refinement_samples"
             )?;
             for (i, r) in self.rays.iter().enumerate() {
                 let (px, py) = (i as u32 % self.width, i as u32 / self.width);
                 writeln!(
                     w,
-                    "{px},{py},{},{},{},{},{},{},{},{},{},{}",
+                    "{px},{py},{},{},{},{},{},{},{},{},{},{},{},{}",
                     r.hit as u8,
                     r.samples,
                     r.leaps,
@@ -197,7 +197,9 @@ impl Frame {
                     r.t_enter,
                     r.t_exit,
                     r.terminated_early as u8,
-                    r.leap_samples
+                    r.leap_samples,
+                    r.positions_cut,
+                    r.refinement_samples
                 )?;
             }
             Ok(())
