@@ -303,6 +303,74 @@ fn state_rules_and_the_command_bus() {
     assert!(!d.is_legal(Command::Act { bank: 3, row: 1 }, 100));
 }
 
+/// A sleeping module against one whose controller decides every cycle, on random requests over
+/// 4 banks and 3 rows, in bursts with quiet stretches between: the same command and the same
+/// word every cycle and the same statistics, with and without overtaking, a voxel FIFO that
+/// fills, both row policies, a READ-to-READ gap and frequent refreshes.
+#[test]
+fn sleeping_equals_ticking_on_random_requests() {
+    for case in 0..6 {
+        let mut config = memory_config();
+        let mut t = timing();
+        match case {
+            1 => config.overtaking = false,
+            2 => config.voxel_fifo_depth = 2,
+            3 => config.row_policy = RowPolicy::Close,
+            4 => t.t_ccd = 2,
+            5 => {
+                t.refresh_interval = 40;
+                config.address_fifo_depth = 3;
+            }
+            _ => {}
+        }
+        let mut fast = SdramModule::new(&config, &t);
+        let mut reference = SdramModule::new(&config, &t).without_sleeping();
+        let mut state = 0x2545_f491_4f6c_dd1du64 + case;
+        let mut next = |n: u64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state % n
+        };
+        let mut tag = 0;
+        for now in 0..30_000u64 {
+            fast.step(now);
+            reference.step(now);
+            assert_eq!(
+                fast.issued_at(now),
+                reference.issued_at(now),
+                "case {case}, cycle {now}"
+            );
+            assert_eq!(
+                fast.pop_word(now),
+                reference.pop_word(now),
+                "case {case}, cycle {now}"
+            );
+            assert_eq!(fast.can_accept(), reference.can_accept());
+            // Bursts of pushes, then quiet stretches in which the modules drain and sleep.
+            if (now / 500) % 4 != 3 && next(4) != 0 && fast.can_accept() {
+                tag += 1;
+                let addr = WordAddress {
+                    module: 0,
+                    bank: next(4) as u32,
+                    row: next(3) as u32,
+                    column: next(512) as u32,
+                };
+                fast.push(tag, addr, now);
+                reference.push(tag, addr, now);
+            }
+            fast.account_cycles(1);
+            reference.account_cycles(1);
+        }
+        let stats = fast.final_stats();
+        assert_eq!(stats, reference.final_stats(), "case {case}");
+        assert!(
+            stats.reads > 2_000 && stats.row_misses > 500,
+            "case {case}: {stats:?}"
+        );
+    }
+}
+
 /// Cycles from pushing one request at cycle 0 to its word leaving the module.
 fn isolated_latency(prepare: impl Fn(&mut SdramModule) -> u64, addr: WordAddress) -> u64 {
     let mut t = timing();
