@@ -268,6 +268,14 @@ impl SdramModule {
         self
     }
 
+    /// A module that keeps no record of its last command (`issued_at` then answers None): for
+    /// users that read none (the update engine), as the pipeline turns it off through
+    /// `VoxelMemory::record_commands` when no trace or waveform records.
+    pub fn without_command_record(mut self) -> SdramModule {
+        self.records_commands = false;
+        self
+    }
+
     pub fn image(&self) -> Option<&MemoryImage> {
         self.image.as_ref()
     }

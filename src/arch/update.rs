@@ -523,7 +523,10 @@ impl UpdateEngine {
             map: AddressMap::new(config, dims),
             modules: (0..config.modules())
                 .map(|_| {
-                    SdramModule::new(config, timing).with_image(config.banks, rows, config.columns)
+                    // Nothing here reads the modules' last commands.
+                    SdramModule::new(config, timing)
+                        .with_image(config.banks, rows, config.columns)
+                        .without_command_record()
                 })
                 .collect(),
             table: MinMaxTable::zeros(dims, cube_log2, stencil_reach),
