@@ -195,20 +195,8 @@ fn memory_256(bencher: divan::Bencher) {
     use vizsim::arch::pipeline::simulate;
     use vizsim::arch::sdram_module::SdramMemory;
     use vizsim::arch::voxel_memory::VoxelMemory;
-    use vizsim::config::HardwareConfig;
-    use vizsim::functional::renderer::{FixedRenderer, Leaping};
+    let (config, renderer, camera) = cycle_frame();
     let volume = volume_256();
-    let tf = transfer::resolve("class", &volume.name).unwrap();
-    let config = HardwareConfig::default_config();
-    let renderer = FixedRenderer::new(
-        volume,
-        &tf,
-        &RenderSettings::default(),
-        &config,
-        Leaping::None,
-    )
-    .unwrap();
-    let camera = cycle_camera(volume);
     let new_memory = || SdramMemory::new(&config.memory, &config.sdram, volume.dims, 100.0);
     let mut recording = Recording {
         memory: new_memory(),
@@ -263,27 +251,17 @@ fn memory_256(bencher: divan::Bencher) {
     bencher.counter(ItemsCount::new(cycles)).bench(replay);
 }
 
-/// `cycle_256`'s view: 128x128, orbit 5/72.
-fn cycle_camera(volume: &Volume) -> Camera {
-    Camera::for_volume(
-        glam::Vec3::from(volume.extent()),
-        View::Orbit { k: 5, n: 72 },
-        Projection::Ortho,
-        128,
-        128,
-    )
-    .unwrap()
-}
-
-#[divan::bench(sample_count = 2)]
-fn cycle_256(bencher: divan::Bencher) {
-    use vizsim::arch::pipeline::simulate;
-    use vizsim::arch::sdram_module::SdramMemory;
-    use vizsim::config::HardwareConfig;
+/// `cycle_256`'s frame: the default configuration, the class transfer function, no leaping,
+/// 128x128, orbit 5/72.
+fn cycle_frame() -> (
+    vizsim::config::HardwareConfig,
+    vizsim::functional::renderer::FixedRenderer<'static>,
+    Camera,
+) {
     use vizsim::functional::renderer::{FixedRenderer, Leaping};
     let volume = volume_256();
     let tf = transfer::resolve("class", &volume.name).unwrap();
-    let config = HardwareConfig::default_config();
+    let config = vizsim::config::HardwareConfig::default_config();
     let renderer = FixedRenderer::new(
         volume,
         &tf,
@@ -292,7 +270,23 @@ fn cycle_256(bencher: divan::Bencher) {
         Leaping::None,
     )
     .unwrap();
-    let camera = cycle_camera(volume);
+    let camera = Camera::for_volume(
+        glam::Vec3::from(volume.extent()),
+        View::Orbit { k: 5, n: 72 },
+        Projection::Ortho,
+        128,
+        128,
+    )
+    .unwrap();
+    (config, renderer, camera)
+}
+
+#[divan::bench(sample_count = 2)]
+fn cycle_256(bencher: divan::Bencher) {
+    use vizsim::arch::pipeline::simulate;
+    use vizsim::arch::sdram_module::SdramMemory;
+    let (config, renderer, camera) = cycle_frame();
+    let volume = volume_256();
     let run = || {
         let mut memory = SdramMemory::new(&config.memory, &config.sdram, volume.dims, 100.0);
         simulate(

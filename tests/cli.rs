@@ -79,13 +79,11 @@ fn render_writes_a_png_and_json() {
     ]);
     assert!(out.status.success());
     let text = std::fs::read_to_string(&rays).unwrap();
-    let rows: Vec<&str> = text.lines().skip(1).collect();
-    assert_eq!(rows.len(), 1200);
-    let total: u64 = rows
-        .iter()
-        .map(|r| r.split(',').nth(3).unwrap().parse::<u64>().unwrap())
-        .sum();
-    assert_eq!(total, stats["stats"]["samples"].as_u64().unwrap());
+    assert_eq!(text.lines().skip(1).count(), 1200);
+    assert_eq!(
+        column_total(&text, "samples"),
+        stats["stats"]["samples"].as_u64().unwrap()
+    );
 
     // Iso mode with bricks: the per-ray refinement samples and cut positions are columns too,
     // and add up to the frame's totals.
@@ -110,20 +108,25 @@ fn render_writes_a_png_and_json() {
     let stats: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let text = std::fs::read_to_string(&rays).unwrap();
-    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
-    let column_total = |name: &str| -> u64 {
-        let at = header.iter().position(|h| *h == name).expect(name);
-        text.lines()
-            .skip(1)
-            .map(|r| r.split(',').nth(at).unwrap().parse::<u64>().unwrap())
-            .sum()
-    };
     let refinement = stats["refinement_samples"].as_u64().unwrap();
     let cut = stats["ray_range"]["positions_cut"].as_u64().unwrap();
     assert!(refinement > 0 && cut > 0, "the frame refines and cuts");
-    assert_eq!(column_total("refinement_samples"), refinement);
-    assert_eq!(column_total("positions_cut"), cut);
-    assert_eq!(column_total("samples"), stats["samples"].as_u64().unwrap());
+    assert_eq!(column_total(&text, "refinement_samples"), refinement);
+    assert_eq!(column_total(&text, "positions_cut"), cut);
+    assert_eq!(
+        column_total(&text, "samples"),
+        stats["samples"].as_u64().unwrap()
+    );
+}
+
+/// The sum of a per-ray CSV's column, found by its header.
+fn column_total(csv: &str, name: &str) -> u64 {
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let at = header.iter().position(|h| *h == name).expect(name);
+    csv.lines()
+        .skip(1)
+        .map(|r| r.split(',').nth(at).unwrap().parse::<u64>().unwrap())
+        .sum()
 }
 
 #[test]
