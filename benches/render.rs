@@ -140,9 +140,8 @@ fn bench_fixed(bencher: divan::Bencher, config: &vizsim::config::HardwareConfig,
         .bench(|| pool.install(|| renderer.render(&camera)));
 }
 
-/// The cycle-accurate pipeline with the SDRAM model (default configuration), one 256³ frame at
-/// 128×128 (a 256×256 frame takes four times as long); divan's items are simulated cycles.
-/// The SDRAM memory behind the pipeline, recording the sample requests it accepts.
+/// The SDRAM memory behind the pipeline, recording the sample requests it accepts (not the
+/// one-word reads of a distance volume: `memory_256`'s frame has none, and checks it).
 struct Recording<M> {
     memory: M,
     requests: Vec<vizsim::arch::voxel_memory::SampleRequest>,
@@ -182,6 +181,12 @@ impl<M: vizsim::arch::voxel_memory::VoxelMemory> vizsim::arch::voxel_memory::Vox
     fn record_commands(&mut self, on: bool) {
         self.memory.record_commands(on)
     }
+    fn probe(&self, modules: &mut Vec<vizsim::arch::trace::ModuleProbe>) {
+        self.memory.probe(modules)
+    }
+    fn issued_commands(&self, now: u64, out: &mut Vec<vizsim::arch::command_trace::IssuedCommand>) {
+        self.memory.issued_commands(now, out)
+    }
 }
 
 /// `memory_256`: the SDRAM model alone. `cycle_256`'s frame is simulated once with its memory
@@ -193,16 +198,13 @@ impl<M: vizsim::arch::voxel_memory::VoxelMemory> vizsim::arch::voxel_memory::Vox
 #[divan::bench(sample_count = 5)]
 fn memory_256(bencher: divan::Bencher) {
     use vizsim::arch::pipeline::simulate;
-    use vizsim::arch::sdram_module::SdramMemory;
     use vizsim::arch::voxel_memory::VoxelMemory;
     let (config, renderer, camera) = cycle_frame();
-    let volume = volume_256();
-    let new_memory = || SdramMemory::new(&config.memory, &config.sdram, volume.dims, 100.0);
     let mut recording = Recording {
-        memory: new_memory(),
+        memory: cycle_memory(&config),
         requests: Vec::new(),
     };
-    let frame_cycles = simulate(
+    let frame = simulate(
         &renderer,
         &camera,
         &renderer.skipper(),
@@ -212,11 +214,13 @@ fn memory_256(bencher: divan::Bencher) {
         None,
     )
     .unwrap()
-    .stats
-    .cycles;
+    .stats;
+    assert_eq!(frame.distance_reads, 0, "only sample requests are recorded");
+    let frame_cycles = frame.cycles;
     let requests = recording.requests;
+    let words_per_request = config.memory.modules() as u64;
     let replay = || {
-        let mut memory = new_memory();
+        let mut memory = cycle_memory(&config);
         memory.record_commands(false);
         let mut in_flight = vec![false; config.compositing.buffer_capacity];
         let mut completed = Vec::new();
@@ -238,8 +242,8 @@ fn memory_256(bencher: divan::Bencher) {
         }
         assert_eq!(
             memory.stats_json()["reads"].as_u64(),
-            Some(4 * requests.len() as u64),
-            "every request's four words read"
+            Some(words_per_request * requests.len() as u64),
+            "every request's words read, one per module"
         );
         now
     };
@@ -281,14 +285,27 @@ fn cycle_frame() -> (
     (config, renderer, camera)
 }
 
+/// A fresh SDRAM memory for `cycle_256`'s volume at the default 100 MHz clock.
+fn cycle_memory(
+    config: &vizsim::config::HardwareConfig,
+) -> vizsim::arch::sdram_module::SdramMemory {
+    vizsim::arch::sdram_module::SdramMemory::new(
+        &config.memory,
+        &config.sdram,
+        volume_256().dims,
+        config.clock.frequency_mhz,
+    )
+}
+
+/// The cycle-accurate pipeline with the SDRAM model (default configuration), one 256³ frame at
+/// 128×128 (a 256×256 frame takes four times as long); divan's items are simulated cycles.
 #[divan::bench(sample_count = 2)]
 fn cycle_256(bencher: divan::Bencher) {
     use vizsim::arch::pipeline::simulate;
-    use vizsim::arch::sdram_module::SdramMemory;
     let (config, renderer, camera) = cycle_frame();
     let volume = volume_256();
     let run = || {
-        let mut memory = SdramMemory::new(&config.memory, &config.sdram, volume.dims, 100.0);
+        let mut memory = cycle_memory(&config);
         simulate(
             &renderer,
             &camera,

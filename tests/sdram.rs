@@ -306,7 +306,8 @@ fn state_rules_and_the_command_bus() {
 /// A sleeping module against one whose controller decides every cycle, on random requests over
 /// 4 banks and 3 rows, in bursts with quiet stretches between: the same command and the same
 /// word every cycle and the same statistics, with and without overtaking, a voxel FIFO that
-/// fills, both row policies, a READ-to-READ gap and frequent refreshes.
+/// fills, both row policies, a READ-to-READ gap, and frequent refreshes with a 3-deep address
+/// FIFO.
 #[test]
 fn sleeping_equals_ticking_on_random_requests() {
     for case in 0..6 {

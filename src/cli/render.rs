@@ -19,7 +19,8 @@ pub struct RenderArgs {
     #[arg(long)]
     json: Option<PathBuf>,
     /// Also write one CSV row per ray: samples, leaps, where it entered and left, ERT, the
-    /// positions its start and end cut (bricks, clipping) and its refinement samples (iso).
+    /// positions its start and end cut (bricks, clipping, geometry) and its refinement samples
+    /// (iso).
     #[arg(long)]
     rays: Option<PathBuf>,
     /// `float`: the reference ray caster; `fixed` (or `step`): the functional fixed-point
