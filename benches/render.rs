@@ -285,7 +285,7 @@ fn cycle_frame() -> (
     (config, renderer, camera)
 }
 
-/// A fresh SDRAM memory for `cycle_256`'s volume at the default 100 MHz clock.
+/// A fresh SDRAM memory for `cycle_256`'s volume at the configuration's clock.
 fn cycle_memory(
     config: &vizsim::config::HardwareConfig,
 ) -> vizsim::arch::sdram_module::SdramMemory {
