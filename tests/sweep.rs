@@ -276,6 +276,75 @@ fn a_killed_sweep_resumes_to_the_same_results() {
     assert_eq!(sorted_lines(&whole.join("results.jsonl")).len(), 144);
 }
 
+/// A merge never destroys results already written: results already in the output folder are
+/// merged in, and a folder a sweep is writing into is refused (the folder's lock, held here by
+/// the test as a running sweep holds it).
+#[test]
+fn merge_keeps_the_results_it_would_replace() {
+    let dir = temp_dir("merge-keeps");
+    let exp = write_experiment(
+        &dir,
+        &TINY.replace("models = [\"step\", \"cycle\"]", "models = [\"step\"]"),
+    );
+    let exp = exp.to_str().unwrap();
+    let shard = |i: usize| {
+        let d = dir.join(format!("shard{i}"));
+        let r = vizsim(&[
+            "sweep",
+            exp,
+            "--out",
+            d.to_str().unwrap(),
+            "--shard",
+            &format!("{i}/2"),
+        ]);
+        assert!(r.status.success());
+        d
+    };
+    let (a, b) = (shard(0), shard(1));
+    let (a_, b_) = (a.to_str().unwrap(), b.to_str().unwrap());
+    let mut both = sorted_lines(&a.join("results.jsonl"));
+    both.extend(sorted_lines(&b.join("results.jsonl")));
+    both.sort();
+    let before = std::fs::read(a.join("results.jsonl")).unwrap();
+
+    let lock = std::fs::File::create(a.join(".sweep.lock")).unwrap();
+    lock.lock().unwrap();
+    let locked = vizsim(&["merge", b_, "--out", a_]);
+    assert!(
+        !locked.status.success(),
+        "merging into a folder a sweep is writing"
+    );
+    assert!(String::from_utf8_lossy(&locked.stderr).contains("another sweep is writing"));
+    assert_eq!(std::fs::read(a.join("results.jsonl")).unwrap(), before);
+    drop(lock);
+
+    // Only b listed: a's own results are merged in, not replaced.
+    let merged = vizsim(&["merge", b_, "--out", a_]);
+    assert!(
+        merged.status.success(),
+        "{}",
+        String::from_utf8_lossy(&merged.stderr)
+    );
+    assert_eq!(sorted_lines(&a.join("results.jsonl")), both);
+
+    // A result in the output folder that differs from an input's is an error, and nothing is
+    // written.
+    // (b's first run, as the output folder holds it, with another step count)
+    let of_b = sorted_lines(&b.join("results.jsonl")).remove(0);
+    let changed = std::fs::read_to_string(a.join("results.jsonl"))
+        .unwrap()
+        .replacen(&of_b, &of_b.replacen("\"steps\":", "\"steps\":1", 1), 1);
+    assert!(!changed.contains(&of_b));
+    std::fs::write(a.join("results.jsonl"), &changed).unwrap();
+    let differs = vizsim(&["merge", b_, "--out", a_]);
+    assert!(!differs.status.success(), "a merged-in result differs");
+    assert!(String::from_utf8_lossy(&differs.stderr).contains("output folder's earlier results"));
+    assert_eq!(
+        std::fs::read_to_string(a.join("results.jsonl")).unwrap(),
+        changed
+    );
+}
+
 #[test]
 fn shards_merge_to_the_unsharded_sweep() {
     let dir = temp_dir("shards");

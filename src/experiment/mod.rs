@@ -431,7 +431,33 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
             dir.display()
         )));
     }
-    for dir in inputs {
+    if out.exists() && !out.is_dir() {
+        return Err(Error::Invalid(format!(
+            "{}: --out is a file, not a folder",
+            out.display()
+        )));
+    }
+    // The merged file replaces the output folder's results, so results already there are merged
+    // in as if the folder were one more input: a merge never drops a result (re-merging shards
+    // that have run further keeps working; a result that differs is the usual error).
+    let same_folder = |dir: &Path| match (dir.canonicalize(), out.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    let mut inputs = inputs.to_vec();
+    let out_merged_in = out.join(store::RESULTS).exists() && !inputs.iter().any(|d| same_folder(d));
+    if out_merged_in {
+        inputs.push(out);
+    }
+    // No sweep (or other merge) may write into the output folder meanwhile: its lines would go
+    // to the file this merge replaces. An existing folder is locked before its results are
+    // read; a new one is made (and locked) only once every input has been read.
+    let mut lock = if out.is_dir() {
+        Some(store::lock_folder(out)?)
+    } else {
+        None
+    };
+    for dir in &inputs {
         let path = dir.join(store::RESULTS);
         for (line, text) in store::read_lines(&path)? {
             let key = line
@@ -441,10 +467,16 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
                 .to_string();
             match lines.get(&key) {
                 Some(seen) if *seen != text => {
+                    let other = if out_merged_in && *dir == out {
+                        "the inputs (these are the output folder's earlier results: merge \
+                         into another folder to replace them)"
+                    } else {
+                        "another input"
+                    };
                     return Err(Error::format(
                         &path,
-                        format!("run {key} differs from the same run in another input"),
-                    ))
+                        format!("run {key} differs from the same run in {other}"),
+                    ));
                 }
                 _ => {
                     lines.insert(key, text);
@@ -454,7 +486,7 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
     }
     // Everything is read before anything is written: an unreadable input leaves no output.
     let mut timings: BTreeMap<String, String> = BTreeMap::new();
-    for dir in inputs {
+    for dir in &inputs {
         for (line, text) in store::read_timing(&dir.join(store::TIMING))? {
             let key = line.get("key").and_then(Value::as_str);
             if let Some(key) = key.filter(|k| lines.contains_key(*k)) {
@@ -468,7 +500,9 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
         }
         _ => None,
     };
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    if lock.is_none() {
+        lock = Some(store::lock_folder(out)?);
+    }
     // Each file is written atomically, and results.jsonl last: a merge killed half-way leaves
     // the previous results (or none), never results without their timings.
     if !timings.is_empty() {
@@ -481,6 +515,7 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
         })?;
     }
     write_lines(&out.join(store::RESULTS), &lines)?;
+    drop(lock);
     Ok(lines.len())
 }
 

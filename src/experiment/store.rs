@@ -173,6 +173,27 @@ fn repair_timing(path: &Path, result_keys: &[String]) -> Result<bool> {
     Ok(true)
 }
 
+/// Creates `dir` if needed and takes its writer's lock (held while the returned file lives):
+/// a sweep holds it while it appends, a merge while it replaces the folder's files, so neither
+/// writes under the other.
+pub fn lock_folder(dir: &Path) -> Result<File> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let lock_path = dir.join(LOCK);
+    let lock = OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&lock_path)
+        .map_err(|e| Error::io(&lock_path, e))?;
+    if lock.try_lock().is_err() {
+        return Err(Error::Invalid(format!(
+            "{}: another sweep is writing into this folder",
+            dir.display()
+        )));
+    }
+    Ok(lock)
+}
+
 pub struct ResultStore {
     dir: PathBuf,
     keys: HashSet<String>,
@@ -185,21 +206,8 @@ pub struct ResultStore {
 
 impl ResultStore {
     pub fn open(dir: &Path) -> Result<ResultStore> {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         // One sweep per folder at a time: two writers would interleave their lines.
-        let lock_path = dir.join(LOCK);
-        let lock = OpenOptions::new()
-            .create(true)
-            .truncate(false)
-            .write(true)
-            .open(&lock_path)
-            .map_err(|e| Error::io(&lock_path, e))?;
-        if lock.try_lock().is_err() {
-            return Err(Error::Invalid(format!(
-                "{}: another sweep is writing into this folder",
-                dir.display()
-            )));
-        }
+        let lock = lock_folder(dir)?;
         let path = dir.join(RESULTS);
         let (lines, complete, torn) = scan(&path)?;
         if torn {
