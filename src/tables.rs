@@ -321,6 +321,10 @@ pub fn build(
     /// Sum, count, whether any line ran with the SRAM raised, whether any line is sampled.
     type Cell = (f64, u32, bool, bool);
     let mut cells: BTreeMap<(Key, (i64, String)), Cell> = BTreeMap::new();
+    // A cell is a mean over frames: two results of one frame (view and time step) in a cell
+    // differ in something that is neither a row nor the column (a base configuration or image
+    // size the sweep folder mixes), and averaging them would hide it.
+    let mut frames: BTreeMap<(Key, (i64, String), String), String> = BTreeMap::new();
     let mut stand_ins = BTreeSet::new();
     for line in &lines {
         let Some(value) = metric.value(line) else {
@@ -334,6 +338,22 @@ pub fn build(
             column_field,
             &field_text(line, column_field).unwrap_or_default(),
         );
+        let frame = ["view", "frame", "time_step"]
+            .iter()
+            .filter_map(|f| field_text(line, f).map(|v| format!("{f} {v}")))
+            .collect::<Vec<_>>()
+            .join(", ");
+        let key = field_text(line, "key").unwrap_or_default();
+        if let Some(other) =
+            frames.insert((row.clone(), column.clone(), frame.clone()), key.clone())
+        {
+            return Err(Error::Invalid(format!(
+                "runs {other} and {key} are the same frame ({frame}) in one table cell: the \
+                 results differ in something that is neither a row nor the column (a base \
+                 configuration or image size changed between sweeps into one folder?); \
+                 tabulate them from separate folders, or add the field that differs to --rows"
+            )));
+        }
         let raised = line.get("fits_default_sram") == Some(&Value::Bool(false));
         if line.get("stand_in") == Some(&Value::Bool(true)) {
             stand_ins.extend(field_text(line, "dataset"));
@@ -593,6 +613,29 @@ mod tests {
             line["cycles_ci95"] = 10.0.into();
         }
         line
+    }
+
+    /// Two results of one frame in a cell (a sweep folder that mixes configurations the rows
+    /// and columns do not show) are an error naming both runs, not an average; frames of one
+    /// cell are fine.
+    #[test]
+    fn a_frame_twice_in_a_cell_is_an_error_not_an_average() {
+        let lines = [line("ert", 0, 100, false), line("ert", 1, 120, false)];
+        let refs: Vec<&serde_json::Value> = lines.iter().collect();
+        let rows = ["dataset".to_string()];
+        assert!(build(&refs, Metric::Cycles, &rows, "mode", "t".into()).is_ok());
+        let mut again = line("ert", 1, 300, false);
+        again["key"] = "ert-1-other-config".into();
+        let mixed = [lines[0].clone(), lines[1].clone(), again];
+        let refs: Vec<&serde_json::Value> = mixed.iter().collect();
+        let error = build(&refs, Metric::Cycles, &rows, "mode", "t".into())
+            .err()
+            .expect("a frame twice in a cell")
+            .to_string();
+        assert!(
+            error.contains("ert-1") && error.contains("ert-1-other-config"),
+            "{error}"
+        );
     }
 
     /// A cell with a sampled line among its frames is marked in markdown (≈ and the note) and
