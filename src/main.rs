@@ -17,7 +17,8 @@ fn main() {
 /// `vizsim table runs/x | head`: once the reader of standard output has gone, printing fails
 /// (Rust ignores SIGPIPE, so the write returns EPIPE) and `println!` panics. A command-line
 /// tool ends quietly there instead, with the status of one killed by SIGPIPE (128 + 13), as a C
-/// tool would be. Any other panic still reports as usual.
+/// tool would be. Any other failure to print (a full disk) is an error with status 1, not a
+/// panic. Any other panic still reports as usual.
 fn end_quietly_when_the_reader_is_gone() {
     let report = std::panic::take_hook();
     std::panic::set_hook(Box::new(move |info| {
@@ -27,8 +28,17 @@ fn end_quietly_when_the_reader_is_gone() {
             .map(String::as_str)
             .or_else(|| payload.downcast_ref::<&str>().copied())
             .unwrap_or_default();
-        if message.starts_with("failed printing to stdout") && message.contains("Broken pipe") {
-            std::process::exit(128 + 13);
+        if let Some(cause) = message.strip_prefix("failed printing to stdout") {
+            if cause.contains("Broken pipe") {
+                std::process::exit(128 + 13);
+            }
+            // Any other write error (a full disk, `> /dev/full`): an error like any other, not
+            // a panic. Files the command writes are written atomically, so none is half-written.
+            eprintln!(
+                "error: writing to standard output{cause}",
+                cause = cause.trim_end()
+            );
+            std::process::exit(1);
         }
         report(info);
     }));

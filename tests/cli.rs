@@ -477,3 +477,26 @@ fn a_reader_that_goes_away_ends_the_command_quietly() {
     assert!(!stderr.contains("panicked"), "panicked: {stderr}");
     assert_eq!(out.status.code(), Some(141), "stderr: {stderr}");
 }
+
+/// `vizsim … > /dev/full`: a standard output that cannot be written (a full disk) is an error
+/// with status 1 naming the cause, not a panic (status 101).
+#[test]
+fn a_full_standard_output_is_an_error_not_a_panic() {
+    let Ok(full) = std::fs::OpenOptions::new().write(true).open("/dev/full") else {
+        eprintln!("skipped: no /dev/full here");
+        return;
+    };
+    let out = Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args(["sim", "--dataset", "phantom:sphere:16", "--size", "8x8"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdout(full)
+        .output()
+        .expect("run vizsim");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "panicked: {stderr}");
+    assert_eq!(out.status.code(), Some(1), "stderr: {stderr}");
+    assert!(
+        stderr.contains("error: writing to standard output") && stderr.contains("space"),
+        "{stderr}"
+    );
+}
