@@ -305,6 +305,21 @@ pub fn build(
             }
         }
     }
+    // A misspelt field would tabulate as an empty column: name it instead.
+    for f in row_fields.iter().map(String::as_str).chain([column_field]) {
+        if !lines.iter().any(|l| field_text(l, f).is_some()) {
+            return Err(Error::Invalid(format!(
+                "`{f}` is not a field of these results; fields: dataset, tf, mode, model, \
+                 frame, view, or a swept field ({})",
+                first
+                    .keys()
+                    .filter(|k| !["dataset", "tf", "mode", "model"].contains(&k.as_str()))
+                    .cloned()
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )));
+        }
+    }
     for f in &varying {
         if !row_fields.contains(f) && column_field != f {
             return Err(Error::Invalid(format!(

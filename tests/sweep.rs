@@ -345,6 +345,95 @@ fn merge_keeps_the_results_it_would_replace() {
     );
 }
 
+/// Inputs that would mislead are named, not merged or tabulated: a folder without results, the
+/// results of another experiment, a misspelt table field, an experiment without a name. The
+/// merged folder's description is no shard's.
+#[test]
+fn merge_and_table_refuse_what_would_mislead() {
+    let dir = temp_dir("mislead");
+    let one = TINY.replace("models = [\"step\", \"cycle\"]", "models = [\"step\"]");
+    let exp = write_experiment(&dir, &one);
+    let shard = dir.join("shard0");
+    let (exp_, shard_) = (exp.to_str().unwrap(), shard.to_str().unwrap());
+    assert!(vizsim(&["sweep", exp_, "--out", shard_, "--shard", "0/2"])
+        .status
+        .success());
+    let merged = dir.join("merged");
+    let merged_ = merged.to_str().unwrap();
+    assert!(vizsim(&["merge", shard_, "--out", merged_])
+        .status
+        .success());
+    let resolved = |d: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(d.join("experiment.resolved.json")).unwrap())
+            .unwrap()
+    };
+    assert!(resolved(&shard)["shard"].is_object());
+    assert!(
+        resolved(&merged)["shard"].is_null(),
+        "the merged folder is no shard"
+    );
+
+    let empty = dir.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let r = vizsim(&[
+        "merge",
+        empty.to_str().unwrap(),
+        "--out",
+        dir.join("m1").to_str().unwrap(),
+    ]);
+    assert!(!r.status.success(), "a folder without results merged");
+    assert!(String::from_utf8_lossy(&r.stderr).contains("not a sweep folder"));
+
+    let other_exp = dir.join("other.toml");
+    std::fs::write(
+        &other_exp,
+        one.replace("name = \"ci-tiny\"", "name = \"other\""),
+    )
+    .unwrap();
+    let other = dir.join("other");
+    assert!(vizsim(&[
+        "sweep",
+        other_exp.to_str().unwrap(),
+        "--out",
+        other.to_str().unwrap()
+    ])
+    .status
+    .success());
+    let m2 = dir.join("m2");
+    let r = vizsim(&[
+        "merge",
+        shard_,
+        other.to_str().unwrap(),
+        "--out",
+        m2.to_str().unwrap(),
+    ]);
+    assert!(!r.status.success(), "two experiments merged");
+    assert!(String::from_utf8_lossy(&r.stderr).contains("experiment `other`"));
+    assert!(!m2.exists(), "nothing written");
+
+    let r = vizsim(&[
+        "table",
+        shard_,
+        "--rows",
+        "dataset,tff",
+        "--out",
+        dir.join("t").to_str().unwrap(),
+    ]);
+    assert!(!r.status.success(), "a misspelt row field tabulated");
+    assert!(String::from_utf8_lossy(&r.stderr).contains("`tff` is not a field"));
+
+    let nameless = dir.join("nameless.toml");
+    std::fs::write(&nameless, one.replace("name = \"ci-tiny\"", "name = \" \"")).unwrap();
+    let r = vizsim(&[
+        "sweep",
+        nameless.to_str().unwrap(),
+        "--out",
+        dir.join("n").to_str().unwrap(),
+    ]);
+    assert!(!r.status.success(), "an experiment without a name swept");
+    assert!(String::from_utf8_lossy(&r.stderr).contains("name"));
+}
+
 #[test]
 fn shards_merge_to_the_unsharded_sweep() {
     let dir = temp_dir("shards");

@@ -32,7 +32,8 @@ use vizsim::volume::{dataset, Volume};
     about = "Cycle-accurate simulator of hardware volume ray casting architectures"
 )]
 pub struct Cli {
-    /// Worker threads (default: all cores). Results are identical for any count.
+    /// Worker threads (default: all cores). Results are identical for any count (a sweep's
+    /// results.jsonl holds the same lines, in the order the runs finished; merge sorts them).
     #[arg(long, global = true, value_parser = parse_threads)]
     threads: Option<usize>,
     /// Memory budget, e.g. 8G or 512M: requests known to need more (a volume from its header,

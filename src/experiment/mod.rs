@@ -9,7 +9,7 @@ pub mod spec;
 pub mod store;
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -431,6 +431,14 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
             dir.display()
         )));
     }
+    // A folder without results is no sweep folder (a sweep makes the file when it starts).
+    if let Some(dir) = inputs.iter().find(|d| !d.join(store::RESULTS).exists()) {
+        return Err(Error::Invalid(format!(
+            "{}: no {} here: not a sweep folder",
+            dir.display(),
+            store::RESULTS
+        )));
+    }
     if out.exists() && !out.is_dir() {
         return Err(Error::Invalid(format!(
             "{}: --out is a file, not a folder",
@@ -457,6 +465,8 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
     } else {
         None
     };
+    // Results of one experiment only: a folder of another would mix configurations.
+    let mut experiment: Option<(String, PathBuf)> = None;
     for dir in &inputs {
         let path = dir.join(store::RESULTS);
         for (line, text) in store::read_lines(&path)? {
@@ -465,6 +475,21 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
                 .and_then(Value::as_str)
                 .ok_or_else(|| Error::format(&path, "a result line without a key"))?
                 .to_string();
+            let name = line.get("experiment").and_then(Value::as_str).unwrap_or("");
+            match &experiment {
+                None => experiment = Some((name.to_string(), path.clone())),
+                Some((first, at)) if first != name => {
+                    return Err(Error::format(
+                        &path,
+                        format!(
+                            "results of experiment `{name}`, but {} holds experiment `{first}`: \
+                             merge the shards of one experiment",
+                            at.display()
+                        ),
+                    ))
+                }
+                _ => {}
+            }
             match lines.get(&key) {
                 Some(seen) if *seen != text => {
                     let other = if out_merged_in && *dir == out {
@@ -509,10 +534,18 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
         write_lines(&out.join(store::TIMING), &timings)?;
     }
     if let Some(text) = resolved {
-        crate::output::write_atomically(&out.join(store::RESOLVED), |w| {
-            use std::io::Write;
-            w.write_all(&text)
-        })?;
+        match serde_json::from_slice::<Value>(&text) {
+            // The merged folder is no shard: the first input's description, shard null as an
+            // unsharded sweep writes it.
+            Ok(Value::Object(mut description)) if description.contains_key("shard") => {
+                description.insert("shard".into(), Value::Null);
+                crate::output::write_json(&out.join(store::RESOLVED), &description)?;
+            }
+            _ => crate::output::write_atomically(&out.join(store::RESOLVED), |w| {
+                use std::io::Write;
+                w.write_all(&text)
+            })?,
+        }
     }
     write_lines(&out.join(store::RESULTS), &lines)?;
     drop(lock);

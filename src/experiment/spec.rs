@@ -484,6 +484,10 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
     let experiment: ExperimentFile = toml::from_str(text)
         .map_err(|e| Error::format(source, format!("invalid experiment: {e}")))?;
     let bad = |field: &str, message: String| Error::config(source, field, message);
+    // The name is what keeps two experiments' results out of one folder.
+    if experiment.name.trim().is_empty() {
+        return Err(bad("name", "is empty; give the experiment a name".into()));
+    }
     for (field, list) in [
         ("datasets", &experiment.datasets),
         ("tf", &experiment.tf),
