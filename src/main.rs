@@ -34,7 +34,11 @@ fn end_quietly_when_the_reader_is_gone() {
             }
             // Any other write error (a full disk, `> /dev/full`): an error like any other, not
             // a panic. Files the command writes are written atomically, so none is half-written.
-            eprintln!(
+            // Not `eprintln!`: a standard error that cannot be written either (both to one full
+            // log) would panic inside the hook and abort.
+            use std::io::Write;
+            let _ = writeln!(
+                std::io::stderr(),
                 "error: writing to standard output{cause}",
                 cause = cause.trim_end()
             );

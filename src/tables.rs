@@ -146,6 +146,21 @@ impl Metric {
 
 /// A grouping field of a result line: a top-level field (`dataset`, `tf`, `mode`, `model`,
 /// `frame`) or a swept hardware field by its dotted path (`ray_queue.rays`).
+/// ": " and the swept fields of `lines`, comma-separated ("" when nothing is swept).
+fn axes_listed(lines: &[&Value]) -> String {
+    let axes: BTreeSet<&String> = lines
+        .iter()
+        .filter_map(|l| l.get("axes").and_then(Value::as_object))
+        .flat_map(|a| a.keys())
+        .collect();
+    if axes.is_empty() {
+        String::new()
+    } else {
+        let axes: Vec<&str> = axes.into_iter().map(String::as_str).collect();
+        format!(": {}", axes.join(", "))
+    }
+}
+
 pub fn field_text(line: &Value, field: &str) -> Option<String> {
     let value = match field {
         "dataset" => line.get("dataset_label").or_else(|| line.get("dataset")),
@@ -285,10 +300,14 @@ pub fn build(
     let mut varying = BTreeSet::new();
     let mut first: BTreeMap<String, String> = BTreeMap::new();
     for line in lines {
-        let mut fields: Vec<String> = ["dataset", "tf", "mode", "model"]
-            .iter()
-            .map(|s| s.to_string())
-            .collect();
+        // The run's own fields, those of sequence results (map strategy, time step length,
+        // brick) and the image size: any that varies must be a row or the column.
+        let mut fields: Vec<String> = [
+            "dataset", "tf", "mode", "model", "map", "dt", "brick", "width", "height",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
         if let Some(axes) = line.get("axes").and_then(Value::as_object) {
             fields.extend(axes.keys().cloned());
         }
@@ -310,13 +329,9 @@ pub fn build(
         if !lines.iter().any(|l| field_text(l, f).is_some()) {
             return Err(Error::Invalid(format!(
                 "`{f}` is not a field of these results; fields: dataset, tf, mode, model, \
-                 frame, view, or a swept field ({})",
-                first
-                    .keys()
-                    .filter(|k| !["dataset", "tf", "mode", "model"].contains(&k.as_str()))
-                    .cloned()
-                    .collect::<Vec<_>>()
-                    .join(", ")
+                 frame, view, the sequence fields (map, dt, brick, time_step) or a swept \
+                 field{}",
+                axes_listed(lines)
             )));
         }
     }
@@ -359,6 +374,11 @@ pub fn build(
             .collect::<Vec<_>>()
             .join(", ");
         let key = field_text(line, "key").unwrap_or_default();
+        if frames.get(&(row.clone(), column.clone(), frame.clone())) == Some(&key) {
+            return Err(Error::Invalid(format!(
+                "run {key} is in the results twice (a results file joined with itself?)"
+            )));
+        }
         if let Some(other) =
             frames.insert((row.clone(), column.clone(), frame.clone()), key.clone())
         {

@@ -338,7 +338,7 @@ fn merge_keeps_the_results_it_would_replace() {
     std::fs::write(a.join("results.jsonl"), &changed).unwrap();
     let differs = vizsim(&["merge", b_, "--out", a_]);
     assert!(!differs.status.success(), "a merged-in result differs");
-    assert!(String::from_utf8_lossy(&differs.stderr).contains("output folder's earlier results"));
+    assert!(String::from_utf8_lossy(&differs.stderr).contains("--out folder's earlier result"));
     assert_eq!(
         std::fs::read_to_string(a.join("results.jsonl")).unwrap(),
         changed
@@ -431,7 +431,22 @@ fn merge_and_table_refuse_what_would_mislead() {
         dir.join("n").to_str().unwrap(),
     ]);
     assert!(!r.status.success(), "an experiment without a name swept");
-    assert!(String::from_utf8_lossy(&r.stderr).contains("name"));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("is empty"));
+
+    // The output folder's own results and description count as an input's: another
+    // experiment's folder is refused as output too.
+    let r = vizsim(&["merge", other.to_str().unwrap(), "--out", shard_]);
+    assert!(
+        !r.status.success(),
+        "merged into another experiment's folder"
+    );
+    assert!(String::from_utf8_lossy(&r.stderr).contains("--out folder's earlier results"));
+    // Listed first, the output folder's description is rewritten without its shard.
+    assert!(vizsim(&["merge", shard_, "--out", shard_]).status.success());
+    assert!(
+        resolved(&shard)["shard"].is_null(),
+        "merged in place, still a shard"
+    );
 }
 
 #[test]

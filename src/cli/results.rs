@@ -7,9 +7,11 @@ use clap::Args;
 
 #[derive(Args)]
 pub struct MergeArgs {
-    /// Sweep folders.
+    /// Sweep folders (shards) of one experiment.
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
+    /// Output folder. Results it already holds are merged in, never dropped (merge into a new
+    /// folder to replace them); a folder a sweep is writing into is refused.
     #[arg(long)]
     out: PathBuf,
 }

@@ -9,7 +9,7 @@ pub mod spec;
 pub mod store;
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -452,22 +452,48 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
         (Ok(a), Ok(b)) => a == b,
         _ => false,
     };
-    let mut inputs = inputs.to_vec();
-    let out_merged_in = out.join(store::RESULTS).exists() && !inputs.iter().any(|d| same_folder(d));
-    if out_merged_in {
-        inputs.push(out);
-    }
     // No sweep (or other merge) may write into the output folder meanwhile: its lines would go
     // to the file this merge replaces. An existing folder is locked before its results are
-    // read; a new one is made (and locked) only once every input has been read.
+    // read; a new one is made (and locked) only once every input has been read, and must then
+    // still hold no results.
     let mut lock = if out.is_dir() {
         Some(store::lock_folder(out)?)
     } else {
         None
     };
-    // Results of one experiment only: a folder of another would mix configurations.
-    let mut experiment: Option<(String, PathBuf)> = None;
+    let mut inputs = inputs.to_vec();
+    let out_merged_in = out.join(store::RESULTS).exists() && !inputs.iter().any(|d| same_folder(d));
+    if out_merged_in {
+        inputs.push(out);
+    }
+    let described = |dir: &Path| -> String {
+        if out_merged_in && dir == out {
+            format!("{} (the --out folder's earlier results)", dir.display())
+        } else {
+            dir.display().to_string()
+        }
+    };
+    // Results of one experiment only (by the name in the result lines and in each folder's
+    // description): a folder of another would mix configurations.
+    let mut experiment: Option<(String, String)> = None;
+    let mut same_experiment = |name: &str, dir: &Path| -> Result<()> {
+        match &experiment {
+            None => experiment = Some((name.to_string(), described(dir))),
+            Some((first, at)) if first != name => {
+                return Err(Error::Invalid(format!(
+                    "{} holds experiment `{name}`, but {at} holds experiment `{first}`: merge \
+                     the shards of one experiment",
+                    described(dir)
+                )))
+            }
+            _ => {}
+        }
+        Ok(())
+    };
     for dir in &inputs {
+        if let Some(name) = store::experiment_name(dir)? {
+            same_experiment(&name, dir)?;
+        }
         let path = dir.join(store::RESULTS);
         for (line, text) in store::read_lines(&path)? {
             let key = line
@@ -476,31 +502,20 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
                 .ok_or_else(|| Error::format(&path, "a result line without a key"))?
                 .to_string();
             let name = line.get("experiment").and_then(Value::as_str).unwrap_or("");
-            match &experiment {
-                None => experiment = Some((name.to_string(), path.clone())),
-                Some((first, at)) if first != name => {
+            same_experiment(name, dir)?;
+            match lines.get(&key) {
+                Some(seen) if *seen != text => {
                     return Err(Error::format(
                         &path,
                         format!(
-                            "results of experiment `{name}`, but {} holds experiment `{first}`: \
-                             merge the shards of one experiment",
-                            at.display()
+                            "run {key} differs from the same run in another input{}",
+                            if out_merged_in && *dir == out {
+                                " (this is the --out folder's earlier result: merge into \
+                                 another folder to replace it)"
+                            } else {
+                                ""
+                            }
                         ),
-                    ))
-                }
-                _ => {}
-            }
-            match lines.get(&key) {
-                Some(seen) if *seen != text => {
-                    let other = if out_merged_in && *dir == out {
-                        "the inputs (these are the output folder's earlier results: merge \
-                         into another folder to replace them)"
-                    } else {
-                        "another input"
-                    };
-                    return Err(Error::format(
-                        &path,
-                        format!("run {key} differs from the same run in {other}"),
                     ));
                 }
                 _ => {
@@ -519,14 +534,21 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
             }
         }
     }
+    // Read before anything is written (the first input may be the output folder itself; the
+    // rewrite is atomic).
     let resolved = match inputs.first() {
-        Some(first) if first.join(store::RESOLVED) != out.join(store::RESOLVED) => {
-            crate::input::read_existing(&first.join(store::RESOLVED))?
-        }
-        _ => None,
+        Some(first) => crate::input::read_existing(&first.join(store::RESOLVED))?,
+        None => None,
     };
     if lock.is_none() {
         lock = Some(store::lock_folder(out)?);
+        if out.join(store::RESULTS).exists() {
+            return Err(Error::Invalid(format!(
+                "{}: results appeared in the folder while merging (a sweep into it?); run the \
+                 merge again",
+                out.display()
+            )));
+        }
     }
     // Each file is written atomically, and results.jsonl last: a merge killed half-way leaves
     // the previous results (or none), never results without their timings.

@@ -185,13 +185,25 @@ pub fn lock_folder(dir: &Path) -> Result<File> {
         .write(true)
         .open(&lock_path)
         .map_err(|e| Error::io(&lock_path, e))?;
-    if lock.try_lock().is_err() {
-        return Err(Error::Invalid(format!(
-            "{}: another sweep is writing into this folder",
+    match lock.try_lock() {
+        Ok(()) => Ok(lock),
+        Err(std::fs::TryLockError::WouldBlock) => Err(Error::Invalid(format!(
+            "{}: another sweep is writing into this folder (or a merge)",
             dir.display()
-        )));
+        ))),
+        Err(std::fs::TryLockError::Error(e)) => Err(Error::io(&lock_path, e)),
     }
-    Ok(lock)
+}
+
+/// The experiment name in a folder's `experiment.resolved.json`, if it has one.
+pub fn experiment_name(dir: &Path) -> Result<Option<String>> {
+    let path = dir.join(RESOLVED);
+    let Some(bytes) = crate::input::read_existing(&path)? else {
+        return Ok(None);
+    };
+    Ok(serde_json::from_slice::<Value>(&bytes)
+        .ok()
+        .and_then(|v| v["experiment"]["name"].as_str().map(str::to_string)))
 }
 
 pub struct ResultStore {
@@ -286,15 +298,7 @@ impl ResultStore {
     /// Refuses a folder that holds another experiment's results (by name): its run keys would
     /// mix into this one's tables. A folder without a resolved experiment is taken as new.
     pub fn check_same_experiment(dir: &Path, name: &str) -> Result<()> {
-        let path = dir.join(RESOLVED);
-        let Some(bytes) = crate::input::read_existing(&path)? else {
-            return Ok(());
-        };
-        let text = String::from_utf8_lossy(&bytes);
-        let existing = serde_json::from_str::<Value>(&text)
-            .ok()
-            .and_then(|v| v["experiment"]["name"].as_str().map(str::to_string));
-        match existing {
+        match experiment_name(dir)? {
             Some(other) if other != name => Err(Error::Invalid(format!(
                 "{}: the folder holds results of experiment `{other}`, not `{name}`; sweep into \
                  another folder (or remove this one)",
