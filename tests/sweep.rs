@@ -31,6 +31,11 @@ fn temp_dir(name: &str) -> PathBuf {
     dir
 }
 
+/// `TINY` with the step model only (fast: for the merge and folder tests).
+fn step_only() -> String {
+    TINY.replace("models = [\"step\", \"cycle\"]", "models = [\"step\"]")
+}
+
 fn write_experiment(dir: &Path, text: &str) -> PathBuf {
     let path = dir.join("exp.toml");
     std::fs::write(&path, text).unwrap();
@@ -39,6 +44,24 @@ fn write_experiment(dir: &Path, text: &str) -> PathBuf {
 
 fn vizsim(args: &[&str]) -> std::process::Output {
     Command::new(BIN).args(args).output().unwrap()
+}
+
+/// Runs vizsim and asserts it failed with `expected` in its standard error.
+fn vizsim_fails(args: &[&str], expected: &str) {
+    let out = vizsim(args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "vizsim {args:?} succeeded");
+    assert!(stderr.contains(expected), "vizsim {args:?}: {stderr}");
+}
+
+/// Runs vizsim and asserts it succeeded (its standard error in the message if not).
+fn vizsim_ok(args: &[&str]) {
+    let out = vizsim(args);
+    assert!(
+        out.status.success(),
+        "vizsim {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 fn sorted_lines(path: &Path) -> Vec<String> {
@@ -282,10 +305,7 @@ fn a_killed_sweep_resumes_to_the_same_results() {
 #[test]
 fn merge_keeps_the_results_it_would_replace() {
     let dir = temp_dir("merge-keeps");
-    let exp = write_experiment(
-        &dir,
-        &TINY.replace("models = [\"step\", \"cycle\"]", "models = [\"step\"]"),
-    );
+    let exp = write_experiment(&dir, &step_only());
     let exp = exp.to_str().unwrap();
     let shard = |i: usize| {
         let d = dir.join(format!("shard{i}"));
@@ -351,18 +371,14 @@ fn merge_keeps_the_results_it_would_replace() {
 #[test]
 fn merge_and_table_refuse_what_would_mislead() {
     let dir = temp_dir("mislead");
-    let one = TINY.replace("models = [\"step\", \"cycle\"]", "models = [\"step\"]");
+    let one = step_only();
     let exp = write_experiment(&dir, &one);
     let shard = dir.join("shard0");
     let (exp_, shard_) = (exp.to_str().unwrap(), shard.to_str().unwrap());
-    assert!(vizsim(&["sweep", exp_, "--out", shard_, "--shard", "0/2"])
-        .status
-        .success());
+    vizsim_ok(&["sweep", exp_, "--out", shard_, "--shard", "0/2"]);
     let merged = dir.join("merged");
     let merged_ = merged.to_str().unwrap();
-    assert!(vizsim(&["merge", shard_, "--out", merged_])
-        .status
-        .success());
+    vizsim_ok(&["merge", shard_, "--out", merged_]);
     let resolved = |d: &Path| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(d.join("experiment.resolved.json")).unwrap())
             .unwrap()
@@ -375,14 +391,15 @@ fn merge_and_table_refuse_what_would_mislead() {
 
     let empty = dir.join("empty");
     std::fs::create_dir_all(&empty).unwrap();
-    let r = vizsim(&[
-        "merge",
-        empty.to_str().unwrap(),
-        "--out",
-        dir.join("m1").to_str().unwrap(),
-    ]);
-    assert!(!r.status.success(), "a folder without results merged");
-    assert!(String::from_utf8_lossy(&r.stderr).contains("not a sweep folder"));
+    vizsim_fails(
+        &[
+            "merge",
+            empty.to_str().unwrap(),
+            "--out",
+            dir.join("m1").to_str().unwrap(),
+        ],
+        "not a sweep folder",
+    );
 
     let other_exp = dir.join("other.toml");
     std::fs::write(
@@ -391,47 +408,48 @@ fn merge_and_table_refuse_what_would_mislead() {
     )
     .unwrap();
     let other = dir.join("other");
-    assert!(vizsim(&[
+    vizsim_ok(&[
         "sweep",
         other_exp.to_str().unwrap(),
         "--out",
-        other.to_str().unwrap()
-    ])
-    .status
-    .success());
-    let m2 = dir.join("m2");
-    let r = vizsim(&[
-        "merge",
-        shard_,
         other.to_str().unwrap(),
-        "--out",
-        m2.to_str().unwrap(),
     ]);
-    assert!(!r.status.success(), "two experiments merged");
-    assert!(String::from_utf8_lossy(&r.stderr).contains("experiment `other`"));
+    let m2 = dir.join("m2");
+    vizsim_fails(
+        &[
+            "merge",
+            shard_,
+            other.to_str().unwrap(),
+            "--out",
+            m2.to_str().unwrap(),
+        ],
+        "experiment `other`",
+    );
     assert!(!m2.exists(), "nothing written");
 
-    let r = vizsim(&[
-        "table",
-        shard_,
-        "--rows",
-        "dataset,tff",
-        "--out",
-        dir.join("t").to_str().unwrap(),
-    ]);
-    assert!(!r.status.success(), "a misspelt row field tabulated");
-    assert!(String::from_utf8_lossy(&r.stderr).contains("`tff` is not a field"));
+    vizsim_fails(
+        &[
+            "table",
+            shard_,
+            "--rows",
+            "dataset,tff",
+            "--out",
+            dir.join("t").to_str().unwrap(),
+        ],
+        "`tff` is not a field",
+    );
 
     let nameless = dir.join("nameless.toml");
     std::fs::write(&nameless, one.replace("name = \"ci-tiny\"", "name = \" \"")).unwrap();
-    let r = vizsim(&[
-        "sweep",
-        nameless.to_str().unwrap(),
-        "--out",
-        dir.join("n").to_str().unwrap(),
-    ]);
-    assert!(!r.status.success(), "an experiment without a name swept");
-    assert!(String::from_utf8_lossy(&r.stderr).contains("is empty"));
+    vizsim_fails(
+        &[
+            "sweep",
+            nameless.to_str().unwrap(),
+            "--out",
+            dir.join("n").to_str().unwrap(),
+        ],
+        "is empty",
+    );
 
     // The output folder's own results and description count as an input's: another
     // experiment's folder is refused as output too.
@@ -442,7 +460,7 @@ fn merge_and_table_refuse_what_would_mislead() {
     );
     assert!(String::from_utf8_lossy(&r.stderr).contains("--out folder's earlier results"));
     // Listed first, the output folder's description is rewritten without its shard.
-    assert!(vizsim(&["merge", shard_, "--out", shard_]).status.success());
+    vizsim_ok(&["merge", shard_, "--out", shard_]);
     assert!(
         resolved(&shard)["shard"].is_null(),
         "merged in place, still a shard"
@@ -452,10 +470,7 @@ fn merge_and_table_refuse_what_would_mislead() {
 #[test]
 fn shards_merge_to_the_unsharded_sweep() {
     let dir = temp_dir("shards");
-    let exp = write_experiment(
-        &dir,
-        &TINY.replace("models = [\"step\", \"cycle\"]", "models = [\"step\"]"),
-    );
+    let exp = write_experiment(&dir, &step_only());
     let exp = exp.to_str().unwrap();
     let whole = dir.join("whole");
     assert!(vizsim(&["sweep", exp, "--out", whole.to_str().unwrap()])
