@@ -439,6 +439,16 @@ fn merge_and_table_refuse_what_would_mislead() {
         "`tff` is not a field",
     );
 
+    // An --out that names a file is said to be one, for sweep and merge alike.
+    let file = dir.join("afile");
+    std::fs::write(&file, "").unwrap();
+    let file_ = file.to_str().unwrap();
+    vizsim_fails(&["sweep", exp_, "--out", file_], "is a file, not a folder");
+    vizsim_fails(
+        &["merge", shard_, "--out", file_],
+        "is a file, not a folder",
+    );
+
     let nameless = dir.join("nameless.toml");
     std::fs::write(&nameless, one.replace("name = \"ci-tiny\"", "name = \" \"")).unwrap();
     vizsim_fails(

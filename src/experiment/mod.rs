@@ -439,12 +439,7 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
             store::RESULTS
         )));
     }
-    if out.exists() && !out.is_dir() {
-        return Err(Error::Invalid(format!(
-            "{}: --out is a file, not a folder",
-            out.display()
-        )));
-    }
+    store::must_be_a_folder(out)?;
     // The merged file replaces the output folder's results, so results already there are merged
     // in as if the folder were one more input: a merge never drops a result (re-merging shards
     // that have run further keeps working; a result that differs is the usual error).

@@ -177,6 +177,7 @@ fn repair_timing(path: &Path, result_keys: &[String]) -> Result<bool> {
 /// a sweep holds it while it appends, a merge while it replaces the folder's files, so neither
 /// writes under the other.
 pub fn lock_folder(dir: &Path) -> Result<File> {
+    must_be_a_folder(dir)?;
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let lock_path = dir.join(LOCK);
     let lock = OpenOptions::new()
@@ -193,6 +194,18 @@ pub fn lock_folder(dir: &Path) -> Result<File> {
         ))),
         Err(std::fs::TryLockError::Error(e)) => Err(Error::io(&lock_path, e)),
     }
+}
+
+/// An output folder's path must not name a file (else the error would be about a path inside
+/// it: "Not a directory").
+pub fn must_be_a_folder(dir: &Path) -> Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(Error::Invalid(format!(
+            "{}: is a file, not a folder (--out names the folder of results)",
+            dir.display()
+        )));
+    }
+    Ok(())
 }
 
 /// The experiment name in a folder's `experiment.resolved.json`, if it has one.
@@ -298,6 +311,7 @@ impl ResultStore {
     /// Refuses a folder that holds another experiment's results (by name): its run keys would
     /// mix into this one's tables. A folder without a resolved experiment is taken as new.
     pub fn check_same_experiment(dir: &Path, name: &str) -> Result<()> {
+        must_be_a_folder(dir)?;
         match experiment_name(dir)? {
             Some(other) if other != name => Err(Error::Invalid(format!(
                 "{}: the folder holds results of experiment `{other}`, not `{name}`; sweep into \
