@@ -619,6 +619,25 @@ pub fn timing_description(run: &RunDescription, prepared: &Prepared) -> RunDescr
     timing
 }
 
+/// What a sweep shares simulations by: the timing description, with one more thing left out
+/// for an exact run whose timing reads no voxel value (`timing_depends_on_transfer_function`
+/// false): the dataset, of which only the geometry is then kept (dimensions, spacing, bits per
+/// voxel). Rays then reach, step and read alike on any volume of that shape, so fuel and neghip
+/// (64³), or aneurism and foot-lossy (256³), without ERT or leaping take the same cycles. A
+/// sampled run keeps the dataset's name: it draws its sample by the timing description, which
+/// names it, and two samples of one timing are not one result.
+pub fn reuse_description(run: &RunDescription, prepared: &Prepared) -> RunDescription {
+    let mut timing = timing_description(run, prepared);
+    if run.sample.is_none() && !timing.hardware.timing_depends_on_transfer_function() {
+        let v = prepared.volume;
+        timing.dataset = format!(
+            "any volume of {:?} voxels, spacing {:?}, {} bits",
+            v.dims, v.spacing, v.bits
+        );
+    }
+    timing
+}
+
 /// The share of the run's occupancy map that is empty, percent (None without a map).
 pub fn skippable_subcubes_percent(prepared: &Prepared) -> Option<f64> {
     let map = prepared.fixed().and_then(|r| r.map.as_ref())?;

@@ -932,6 +932,57 @@ size = "24x24"
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Without ERT or leaping nothing reads a voxel value, so an exact cycle run on one dataset
+/// times as the same run on another dataset of the same geometry: the sweep reuses it, and the
+/// lines must be those of sweeping each dataset alone. A sampled run draws its sample by a
+/// description that names the dataset, so it must not take another dataset's estimate.
+#[test]
+fn cycle_runs_on_datasets_of_one_geometry_reuse_the_timing_exactly_when_exact() {
+    let dir = temp_dir("reuse-geometry");
+    let text = |datasets: &str, sample: &str| {
+        format!(
+            r#"
+name = "ci-reuse-geometry"
+datasets = {datasets}
+tf = ["class"]
+modes = ["none", "ert"]
+models = ["cycle"]
+{sample}
+[frames]
+orbit = 72
+select = [0, 7]
+size = "24x24"
+"#
+        )
+    };
+    let both = r#"["phantom:metaballs:32", "phantom:sphere:32"]"#;
+    for (sample, reused) in [("", 2), ("sample = 0.5", 0)] {
+        let (said, together) =
+            sweep_in(&dir.join(format!("both{reused}")), &text(both, sample), "1");
+        // One thread: the 'none' frames of the dataset swept second reuse; 'ert' reads values.
+        assert_eq!(
+            said.contains(&format!("{reused} cycle runs took the timing")),
+            reused > 0,
+            "{sample}: {said}"
+        );
+        let mut separate = Vec::new();
+        for dataset in ["metaballs", "sphere"] {
+            let one = format!(r#"["phantom:{dataset}:32"]"#);
+            let (said, lines) = sweep_in(
+                &dir.join(format!("{dataset}{reused}")),
+                &text(&one, sample),
+                "2",
+            );
+            assert!(!said.contains("took the timing"), "{said}");
+            separate.extend(lines);
+        }
+        separate.sort();
+        assert_eq!(separate.len(), 8);
+        assert_eq!(together, separate, "{sample}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// Sweeps the experiment `text` into `dir` (created) on `threads` threads: what it printed and
 /// its result lines, sorted.
 fn sweep_in(dir: &Path, text: &str, threads: &str) -> (String, Vec<String>) {

@@ -140,8 +140,8 @@ pub fn run(args: SweepArgs) -> Result<()> {
     if summary.timings_reused > 0 {
         println!(
             "  {} cycle runs took the timing of a run that times alike (another transfer \
-             function where nothing reads it, or a leaping structure that never leaps: \
-             docs/experiments.md)",
+             function or dataset of the same size where nothing reads it, or a leaping \
+             structure that never leaps: docs/experiments.md)",
             summary.timings_reused
         );
     }

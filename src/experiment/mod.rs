@@ -142,10 +142,11 @@ fn step_line(run: &RunSpec, view: &StepView, experiment: &str, clock_mhz: f64) -
     Ok(line)
 }
 
-/// Measurements of cycle runs by their timing description (`run::timing_description`): a run
-/// whose timing description equals a finished run's (the same run with another transfer
-/// function where nothing reads it, or with a leaping structure that never leaps) takes its
-/// measurements instead of simulating. Its result line is the one simulating would write: the
+/// Measurements of cycle runs by their timing description (`run::reuse_description`): a run
+/// whose description equals a finished run's (the same run with another transfer function
+/// where nothing reads it, with a leaping structure that never leaps, or, exact and reading no
+/// voxel value, on another dataset of the same geometry) takes its measurements instead of
+/// simulating. Its result line is the one simulating would write: the
 /// identity fields and the map's own `skippable_subcubes_percent` are the run's, the rest is
 /// equal by construction (`tests/sweep.rs` compares sweeps that reuse with sweeps that cannot).
 /// Kept for every cycle run the sweep simulates: about 2 KB each (`spec::BYTES_PER_RUN`).
@@ -161,7 +162,7 @@ impl TimingReuse {
         if run.run.model != Model::Cycle {
             return None;
         }
-        serde_json::to_string(&run::timing_description(&run.run, prepared)).ok()
+        serde_json::to_string(&run::reuse_description(&run.run, prepared)).ok()
     }
 
     /// Runs the frame, or builds its line from the measurements of a finished run with the
@@ -272,7 +273,7 @@ pub struct SweepSummary {
     pub ran: usize,
     pub torn_lines_dropped: usize,
     /// Cycle runs that took the measurements of a run with the same timing description
-    /// (`run::timing_description`) instead of simulating.
+    /// (`run::reuse_description`) instead of simulating.
     pub timings_reused: usize,
     pub wall_seconds: f64,
 }
