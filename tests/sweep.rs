@@ -55,13 +55,15 @@ fn vizsim_fails(args: &[&str], expected: &str) {
 }
 
 /// Runs vizsim and asserts it succeeded (its standard error in the message if not).
-fn vizsim_ok(args: &[&str]) {
+/// Runs vizsim, which must succeed; returns what it printed.
+fn vizsim_ok(args: &[&str]) -> String {
     let out = vizsim(args);
     assert!(
         out.status.success(),
         "vizsim {args:?}: {}",
         String::from_utf8_lossy(&out.stderr)
     );
+    String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
 fn sorted_lines(path: &Path) -> Vec<String> {
@@ -980,6 +982,58 @@ size = "24x24"
         assert_eq!(separate.len(), 8);
         assert_eq!(together, separate, "{sample}");
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A resumed sweep reuses the timings of the cycle runs the folder already holds: here half of
+/// the experiment is swept as shard 0 (no twin pair is inside it), then the whole experiment is
+/// swept into the same folder, and each pending run's twin is a finished one. The lines must
+/// be those of one uninterrupted sweep.
+#[test]
+fn a_resumed_sweep_reuses_the_timings_of_the_runs_it_holds() {
+    let dir = temp_dir("reuse-resumed");
+    let text = r#"
+name = "ci-reuse-resumed"
+datasets = ["phantom:metaballs:32"]
+tf = ["zero", "class"]
+modes = ["none"]
+models = ["cycle"]
+[frames]
+orbit = 72
+select = [0, 7, 14]
+size = "24x24"
+"#;
+    let (said, whole) = sweep_in(&dir.join("whole"), text, "1");
+    assert!(said.contains("3 cycle runs took the timing"), "{said}");
+    let resumed = dir.join("resumed");
+    std::fs::create_dir_all(&resumed).unwrap();
+    let exp = resumed.join("exp.toml");
+    std::fs::write(&exp, text).unwrap();
+    let (exp_, out_) = (exp.to_str().unwrap(), resumed.join("out"));
+    let out_ = out_.to_str().unwrap();
+    let first = vizsim_ok(&[
+        "--threads",
+        "1",
+        "sweep",
+        exp_,
+        "--out",
+        out_,
+        "--shard",
+        "0/2",
+    ]);
+    assert!(
+        !first.contains("took the timing"),
+        "shard 0 holds no twin pair: {first}"
+    );
+    let second = vizsim_ok(&["--threads", "1", "sweep", exp_, "--out", out_]);
+    assert!(
+        second.contains("3 were already done") && second.contains("3 cycle runs took the timing"),
+        "{second}"
+    );
+    assert_eq!(
+        sorted_lines(&resumed.join("out").join("results.jsonl")),
+        whole
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -67,13 +67,23 @@ fn result_line(
     prepared: &Prepared,
     measured: &Measurements,
 ) -> Result<Value> {
-    let mut line = identity_line(run, experiment, &prepared.transfer_function);
     match serde_json::to_value(measured) {
-        Ok(Value::Object(measured)) => line.as_object_mut().expect("object").extend(measured),
-        Ok(_) => {}
-        Err(e) => return Err(Error::Invalid(format!("result of run {}: {e}", run.key))),
+        Ok(Value::Object(measured)) => Ok(line_of(run, experiment, prepared, measured)),
+        Ok(_) => Ok(identity_line(run, experiment, &prepared.transfer_function)),
+        Err(e) => Err(Error::Invalid(format!("result of run {}: {e}", run.key))),
     }
-    Ok(line)
+}
+
+/// The run's identity, then the measurement fields `measured`.
+fn line_of(
+    run: &RunSpec,
+    experiment: &str,
+    prepared: &Prepared,
+    measured: serde_json::Map<String, Value>,
+) -> Value {
+    let mut line = identity_line(run, experiment, &prepared.transfer_function);
+    line.as_object_mut().expect("object").extend(measured);
+    line
 }
 
 /// Where a run sits in the experiment: the first fields of its result line.
@@ -146,13 +156,14 @@ fn step_line(run: &RunSpec, view: &StepView, experiment: &str, clock_mhz: f64) -
 /// whose description equals a finished run's (the same run with another transfer function
 /// where nothing reads it, with a leaping structure that never leaps, or, exact and reading no
 /// voxel value, on another dataset of the same geometry) takes its measurements instead of
-/// simulating. Its result line is the one simulating would write: the
-/// identity fields and the map's own `skippable_subcubes_percent` are the run's, the rest is
-/// equal by construction (`tests/sweep.rs` compares sweeps that reuse with sweeps that cannot).
-/// Kept for every cycle run the sweep simulates: about 2 KB each (`spec::BYTES_PER_RUN`).
+/// simulating. Its result line is the one simulating would write: the identity fields and the
+/// map's own `skippable_subcubes_percent` are the run's, the rest is equal by construction
+/// (`tests/sweep.rs` compares sweeps that reuse with sweeps that cannot). Kept as the line's
+/// measurement fields, for every cycle run the sweep simulates (about 2 KB each:
+/// `spec::BYTES_PER_RUN`) and, when a sweep resumes, for the cycle runs the folder holds.
 #[derive(Default)]
 struct TimingReuse {
-    measured: Mutex<BTreeMap<String, Measurements>>,
+    measured: Mutex<BTreeMap<String, serde_json::Map<String, Value>>>,
     reused: std::sync::atomic::AtomicUsize,
 }
 
@@ -165,36 +176,71 @@ impl TimingReuse {
         serde_json::to_string(&run::reuse_description(&run.run, prepared)).ok()
     }
 
+    fn measured(
+        &self,
+    ) -> Result<std::sync::MutexGuard<'_, BTreeMap<String, serde_json::Map<String, Value>>>> {
+        self.measured
+            .lock()
+            .map_err(|_| Error::Invalid("timing cache poisoned".into()))
+    }
+
+    /// Keeps the measurements of `line`, the result line a finished run wrote (a resumed
+    /// sweep's earlier results): its fields but the identity.
+    fn learn(
+        &self,
+        run: &RunSpec,
+        prepared: &Prepared,
+        experiment: &str,
+        line: &Value,
+    ) -> Result<()> {
+        let (Some(timing_key), Some(fields)) = (Self::timing_key(run, prepared), line.as_object())
+        else {
+            return Ok(());
+        };
+        let identity = identity_line(run, experiment, &prepared.transfer_function);
+        let identity = identity.as_object().expect("object");
+        let measured = fields
+            .iter()
+            .filter(|(field, _)| !identity.contains_key(*field))
+            .map(|(field, value)| (field.clone(), value.clone()))
+            .collect();
+        self.measured()?.entry(timing_key).or_insert(measured);
+        Ok(())
+    }
+
     /// Runs the frame, or builds its line from the measurements of a finished run with the
     /// same timing key.
     fn run_frame(&self, run: &RunSpec, prepared: &Prepared, experiment: &str) -> Result<Value> {
         let Some(timing_key) = Self::timing_key(run, prepared) else {
             return run_frame(run, prepared, experiment);
         };
-        let known = self
-            .measured
-            .lock()
-            .map_err(|_| Error::Invalid("timing cache poisoned".into()))?
-            .get(&timing_key)
-            .cloned();
+        let known = self.measured()?.get(&timing_key).cloned();
         let measured = match known {
             Some(mut measured) => {
                 self.reused
                     .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 // The one measurement of the structure itself, not of the frame.
-                measured.skippable_subcubes_percent = run::skippable_subcubes_percent(prepared);
+                match run::skippable_subcubes_percent(prepared) {
+                    Some(percent) => {
+                        measured.insert("skippable_subcubes_percent".into(), json!(percent))
+                    }
+                    None => measured.remove("skippable_subcubes_percent"),
+                };
                 measured
             }
             None => {
-                let measured = measure_frame(run, prepared)?;
-                self.measured
-                    .lock()
-                    .map_err(|_| Error::Invalid("timing cache poisoned".into()))?
-                    .insert(timing_key, measured.clone());
+                let measured = match serde_json::to_value(measure_frame(run, prepared)?) {
+                    Ok(Value::Object(measured)) => measured,
+                    Ok(_) => serde_json::Map::new(),
+                    Err(e) => {
+                        return Err(Error::Invalid(format!("result of run {}: {e}", run.key)))
+                    }
+                };
+                self.measured()?.insert(timing_key, measured.clone());
                 measured
             }
         };
-        result_line(run, experiment, prepared, &measured)
+        Ok(line_of(run, experiment, prepared, measured))
     }
 }
 
@@ -337,6 +383,16 @@ pub fn sweep(
             .sum()
     };
     order.sort_by(|a, b| cost(b).total_cmp(&cost(a)));
+    // A resumed sweep: the cycle runs the folder holds are timings to reuse as well.
+    let finished: Vec<&RunSpec> = if pending.iter().any(|r| r.run.model == Model::Cycle) {
+        expansion
+            .runs
+            .iter()
+            .filter(|r| r.run.model == Model::Cycle && store.has(&r.key))
+            .collect()
+    } else {
+        Vec::new()
+    };
     let store = Mutex::new(store);
     let name = &expansion.experiment.name;
     if expansion.experiment.sequence.is_some() {
@@ -347,6 +403,7 @@ pub fn sweep(
         return Ok(summary);
     }
     let reuse = TimingReuse::default();
+    learn_finished(expansion, out, &finished, &reuse)?;
     order.par_iter().try_for_each(|g| -> Result<()> {
         let runs = &groups[g];
         let volume = &expansion.volumes[&runs[0].run.dataset];
@@ -364,6 +421,45 @@ pub fn sweep(
     summary.timings_reused = reuse.reused.into_inner();
     summary.wall_seconds = start.elapsed().as_secs_f64();
     Ok(summary)
+}
+
+/// Keeps the measurements of `finished`, cycle runs whose lines `out` holds, for reuse by their
+/// twins. Each run's group is prepared to learn its timing description; a group that cannot be
+/// prepared now is left out (its twins simulate).
+fn learn_finished(
+    expansion: &Expansion,
+    out: &Path,
+    finished: &[&RunSpec],
+    reuse: &TimingReuse,
+) -> Result<()> {
+    if finished.is_empty() {
+        return Ok(());
+    }
+    let keys: std::collections::HashSet<&str> = finished.iter().map(|r| r.key.as_str()).collect();
+    let lines: BTreeMap<String, Value> = store::read_lines(&out.join(store::RESULTS))?
+        .into_iter()
+        .filter_map(|(line, _)| {
+            let key = line.get("key")?.as_str()?.to_string();
+            keys.contains(key.as_str()).then_some((key, line))
+        })
+        .collect();
+    let mut groups: BTreeMap<(String, String, String), Vec<&RunSpec>> = BTreeMap::new();
+    for run in finished {
+        groups.entry(run.group()).or_default().push(run);
+    }
+    let name = &expansion.experiment.name;
+    groups.par_iter().try_for_each(|(_, runs)| -> Result<()> {
+        let volume = &expansion.volumes[&runs[0].run.dataset];
+        let Ok(prepared) = run::prepare(&runs[0].run, volume) else {
+            return Ok(());
+        };
+        for run in runs {
+            if let Some(line) = lines.get(&run.key) {
+                reuse.learn(run, &prepared, name, line)?;
+            }
+        }
+        Ok(())
+    })
 }
 
 /// A rough time estimate for a dry run, in seconds on `threads` cores. Steps per frame ≈
