@@ -294,7 +294,8 @@ impl Sequence {
                     let last = spec.time + (steps - 1) as f32 * dt;
                     if !last.is_finite() {
                         return Err(Error::Invalid(format!(
-                            "time step dt = {dt}: the time of step {} overflows ({last}); give a                              smaller dt or fewer steps",
+                            "time step dt = {dt}: the time of step {} overflows ({last}); give a \
+                             smaller dt or fewer steps",
                             steps - 1
                         )));
                     }
@@ -537,7 +538,8 @@ pub struct SequenceReport {
     pub source: String,
     pub dims: [usize; 3],
     pub map: MapMode,
-    pub subcube: usize,
+    /// The map's sub-cube edge; None (null) with `map = none` (no map kept).
+    pub subcube: Option<usize>,
     pub brick: usize,
     pub clock_mhz: f64,
     /// How update and render are ordered: `fence` (update, map, render in turn).
@@ -546,11 +548,12 @@ pub struct SequenceReport {
     /// Frames per second over every step, the download of step 0 included.
     pub fps: f64,
     /// Frames per second of the steps after the first (partial updates): the sequence's rate.
-    pub steady_fps: f64,
-    /// Mean cycles per step after the first: update, map, render.
-    pub mean_update_cycles: f64,
-    pub mean_map_cycles: f64,
-    pub mean_render_cycles: f64,
+    /// None (null) with a single step: there is no step after the first.
+    pub steady_fps: Option<f64>,
+    /// Mean cycles per step after the first: update, map, render (None with a single step).
+    pub mean_update_cycles: Option<f64>,
+    pub mean_map_cycles: Option<f64>,
+    pub mean_render_cycles: Option<f64>,
 }
 
 /// What the frame loop shows an observer after each step.
@@ -598,8 +601,11 @@ pub fn run_sequence(
     let render_run = leaping_run();
     if options.map != MapMode::None && !matches!(render_run.leaping(), Leaping::Occupancy { .. }) {
         return Err(Error::Invalid(format!(
-            "--map {}: the run must leap with an occupancy map (give a sub-cube size)",
-            options.map.name()
+            "--map {}: the run must leap with an occupancy map (a sub-cube size, and \
+             occupancy.structure = \"map\", not {}); or --map none",
+            options.map.name(),
+            serde_json::to_string(&render_run.hardware.occupancy.structure)
+                .unwrap_or_default()
         )));
     }
     let plain_run = {
@@ -726,24 +732,20 @@ pub fn run_sequence(
         let cycles: u64 = reports.iter().map(|s| s.total_cycles).sum();
         reports.len() as f64 * hw.clock.frequency_mhz * 1e6 / (cycles.max(1) as f64)
     };
-    let later = if steps.len() > 1 {
-        &steps[1..]
-    } else {
-        &steps[..]
-    };
+    let later = steps.get(1..).filter(|later| !later.is_empty());
     let mean = |f: fn(&StepReport) -> u64| {
-        later.iter().map(f).sum::<u64>() as f64 / later.len().max(1) as f64
+        later.map(|later| later.iter().map(f).sum::<u64>() as f64 / later.len() as f64)
     };
     Ok(SequenceReport {
         source: sequence.name.clone(),
         dims,
         map: options.map,
-        subcube,
+        subcube: (options.map != MapMode::None).then_some(subcube),
         brick: options.brick,
         clock_mhz: hw.clock.frequency_mhz,
         ordering: "fence",
         fps: fps_of(&steps),
-        steady_fps: fps_of(later),
+        steady_fps: later.map(fps_of),
         mean_update_cycles: mean(|s| s.update_cycles),
         mean_map_cycles: mean(|s| s.map_cycles),
         mean_render_cycles: mean(|s| s.render_cycles),

@@ -172,6 +172,66 @@ fn target(path: &Path) -> Result<Target> {
     }
 }
 
+/// Refuses a command's outputs that would overwrite one of its inputs or each other (the
+/// later write would silently replace the file). `inputs`: files the command reads (paths that
+/// are no existing file are ignored: a dataset name, a preset); `outputs`: (option, path).
+/// Paths are compared as resolved (symlinks, `..`, a new file by its folder); devices and FIFOs
+/// (/dev/null twice) are not files and may repeat.
+pub fn check_distinct(inputs: &[&Path], outputs: &[(&str, &Path)]) -> Result<()> {
+    let resolve = |path: &Path| -> Option<std::path::PathBuf> {
+        match std::fs::metadata(path) {
+            Ok(meta) if !meta.is_file() => None,
+            Ok(_) => std::fs::canonicalize(path).ok(),
+            // A new file, perhaps in folders still to be made: its longest existing ancestor
+            // resolved, the rest of the path followed by name.
+            Err(_) => {
+                let absolute = std::env::current_dir().ok()?.join(path);
+                let parts: Vec<_> = absolute.components().collect();
+                let (mut real, known) = (1..=parts.len()).rev().find_map(|n| {
+                    let prefix: std::path::PathBuf = parts[..n].iter().collect();
+                    Some((std::fs::canonicalize(prefix).ok()?, n))
+                })?;
+                // The rest lexically (its folders do not exist yet: no symlink among them).
+                for part in &parts[known..] {
+                    match part {
+                        std::path::Component::ParentDir => {
+                            real.pop();
+                        }
+                        std::path::Component::Normal(name) => real.push(name),
+                        _ => {}
+                    }
+                }
+                Some(real)
+            }
+        }
+    };
+    let read: Vec<(&Path, std::path::PathBuf)> = inputs
+        .iter()
+        .filter(|p| p.is_file())
+        .filter_map(|p| Some((*p, resolve(p)?)))
+        .collect();
+    let mut written: Vec<(&str, std::path::PathBuf)> = Vec::new();
+    for &(option, path) in outputs {
+        let Some(real) = resolve(path) else { continue };
+        if let Some((input, _)) = read.iter().find(|(_, r)| *r == real) {
+            return Err(Error::Invalid(format!(
+                "{option} {}: is the input {}; writing it would destroy it (choose another name)",
+                path.display(),
+                input.display()
+            )));
+        }
+        if let Some((other, _)) = written.iter().find(|(_, r)| *r == real) {
+            return Err(Error::Invalid(format!(
+                "{option} {}: is also the file of {other}; one would overwrite the other (choose \
+                 another name)",
+                path.display()
+            )));
+        }
+        written.push((option, real));
+    }
+    Ok(())
+}
+
 /// Fails early, before a long computation, when `path` cannot be written: a folder, or a
 /// folder that cannot be created or written into (tried with the temporary the write will
 /// use). Devices and FIFOs are not opened here (opening a FIFO waits for its reader).

@@ -329,7 +329,7 @@ pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<
         &format!("this run's structures for `{}`", volume.name),
         volume.data.len() as u64 * structure_bytes_per_voxel(run) + frame_bytes(run.size),
     )?;
-    let tf = transfer::resolve(&run.tf, &volume.name)?;
+    let tf = transfer::resolve_for(&run.tf, volume)?;
     let settings = run.settings();
     let renderer = match run.model {
         Model::Float => {

@@ -156,6 +156,25 @@ impl TransferFunction {
     }
 }
 
+/// The '0' classification for a volume without a preset of its own: zero transparent, every
+/// non-zero voxel visible, colour and opacity rising over the voxel type's range (0..=255 or
+/// 0..=65535), as the datasets' own `*-zero` presets do.
+pub fn generic_zero(volume: &crate::volume::Volume) -> TransferFunction {
+    let max = if volume.bits == 16 { 65535.0 } else { 255.0 };
+    let point = |value: f32, rgba: [f32; 4]| ControlPoint { value, rgba };
+    TransferFunction {
+        name: format!("{}-zero", preset_key(&volume.name)),
+        description: "'0' classification (generic, the volume has no preset): every non-zero \
+                      voxel is visible, zero is transparent."
+            .into(),
+        points: vec![
+            point(0.0, [0.0, 0.0, 0.0, 0.0]),
+            point(1.0, [0.35, 0.45, 0.8, 0.05]),
+            point(max, [1.0, 0.9, 0.6, 0.6]),
+        ],
+    }
+}
+
 /// Opacity of a slab `spacing` voxels thick, from the opacity of a one-voxel slab.
 #[inline]
 pub fn correct_opacity(alpha_per_voxel: f32, spacing: f32) -> f32 {
@@ -184,8 +203,19 @@ pub fn preset_names() -> Vec<&'static str> {
     presets::EMBEDDED.iter().map(|(n, _)| *n).collect()
 }
 
-/// Resolves a `--tf` argument for a volume: `zero` or `class` pick the volume's own preset,
-/// a path loads that file, any other word names an embedded preset.
+/// Resolves a `--tf` argument for a volume: `zero` or `class` pick the volume's own preset, a
+/// path loads that file, any other word names an embedded preset; a volume without presets (a
+/// file of your own) takes `zero` as the generic '0' classification (`generic_zero`).
+pub fn resolve_for(arg: &str, volume: &crate::volume::Volume) -> Result<TransferFunction> {
+    let own = format!("{}-zero", preset_key(&volume.name));
+    if arg == "zero" && !Path::new(arg).is_file() && !preset_names().contains(&own.as_str()) {
+        return Ok(generic_zero(volume));
+    }
+    resolve(arg, &volume.name)
+}
+
+/// Resolves a `--tf` argument for the volume named `volume_name` (`resolve_for`, without the
+/// generic `zero`).
 pub fn resolve(arg: &str, volume_name: &str) -> Result<TransferFunction> {
     let path = Path::new(arg);
     if path.is_file() {
@@ -196,6 +226,14 @@ pub fn resolve(arg: &str, volume_name: &str) -> Result<TransferFunction> {
         other => other.to_string(),
     };
     let Some((name, text)) = presets::EMBEDDED.iter().find(|(n, _)| *n == wanted) else {
+        if arg == "class" {
+            return Err(Error::Invalid(format!(
+                "transfer function `class` for dataset `{volume_name}`: there is no preset \
+                     `{wanted}` (a classification is made for a dataset); give `--tf zero` (every \
+                     non-zero voxel visible) or a transfer function file (docs/config.md, \
+                     \"Transfer functions and volumes of your own\")"
+            )));
+        }
         return Err(Error::Invalid(format!(
             "transfer function `{arg}` for dataset `{volume_name}`: no file `{arg}` and no preset `{wanted}`; \
              presets: {}",

@@ -261,12 +261,16 @@ fn verify_skip_reports_no_violations_when_rounding_down_and_some_when_rounding_t
             rounding,
             "--json",
         ]);
-        assert!(
+        // The report is printed either way; a violation fails the check.
+        let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let violations = report["violations"].as_u64().unwrap();
+        assert_eq!(
             out.status.success(),
-            "{}",
+            violations == 0,
+            "{rounding}: {violations} violations, {}",
             String::from_utf8_lossy(&out.stderr)
         );
-        serde_json::from_slice(&out.stdout).unwrap()
+        report
     };
     let down = run("down");
     assert_eq!(down["violations"], 0);
@@ -498,5 +502,291 @@ fn a_full_standard_output_is_an_error_not_a_panic() {
     assert!(
         stderr.contains("error: writing to standard output") && stderr.contains("space"),
         "{stderr}"
+    );
+}
+
+/// An output that names an input, or another output of the same command, is refused before
+/// anything is written: the later write would silently replace the file (found by probing:
+/// `compare a.png b.png --diff a.png` overwrote a.png).
+#[test]
+fn outputs_that_would_overwrite_an_input_or_each_other_are_refused() {
+    let dir = scratch("distinct");
+    let a = dir.join("a.png");
+    let render = vizsim(&[
+        "render",
+        "--dataset",
+        "phantom:sphere:32",
+        "--size",
+        "8x8",
+        "-o",
+        a.to_str().unwrap(),
+    ]);
+    assert!(render.status.success());
+    let b = dir.join("b.png");
+    std::fs::copy(&a, &b).unwrap();
+    let original = std::fs::read(&a).unwrap();
+    let (a_, b_) = (a.to_str().unwrap(), b.to_str().unwrap());
+    // Through a folder that does not exist yet and `..`.
+    let a_again = dir.join("new").join("..").join("a.png");
+    assert_fails(
+        &["compare", a_, b_, "--diff", a_again.to_str().unwrap()],
+        &["--diff", "is the input"],
+        &dir.join("new"),
+    );
+    assert_eq!(std::fs::read(&a).unwrap(), original, "the input is intact");
+    let same = dir.join("same.out");
+    let same_ = same.to_str().unwrap();
+    for (command, first) in [("sim", "--json"), ("render", "--json")] {
+        assert_fails(
+            &[
+                command,
+                "--dataset",
+                "phantom:sphere:32",
+                "--size",
+                "8x8",
+                "-o",
+                same_,
+                first,
+                same_,
+            ],
+            &["--json", "is also the file of --output"],
+            &same,
+        );
+    }
+    // Devices are no files: /dev/null may take several outputs.
+    let ok = vizsim(&[
+        "compare",
+        a_,
+        b_,
+        "--json",
+        "/dev/null",
+        "--diff",
+        "/dev/null",
+    ]);
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+}
+
+/// The fixed-point model's per-ray CSV says where each ray enters and leaves the volume, as the
+/// float reference's does (it wrote 0 and 0 for every ray: found by probing).
+#[test]
+fn the_fixed_models_rays_enter_and_leave_where_the_float_references_do() {
+    let dir = scratch("rays-t");
+    let csv_of = |model: &str| -> String {
+        let (png, rays) = (
+            dir.join(format!("{model}.png")),
+            dir.join(format!("{model}.csv")),
+        );
+        let out = vizsim(&[
+            "render",
+            "--dataset",
+            "phantom:sphere:32",
+            "--size",
+            "12x10",
+            "--view",
+            "orbit:5/72",
+            "--model",
+            model,
+            "-o",
+            png.to_str().unwrap(),
+            "--rays",
+            rays.to_str().unwrap(),
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        std::fs::read_to_string(rays).unwrap()
+    };
+    let column = |csv: &str, name: &str| -> Vec<String> {
+        let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+        let at = header.iter().position(|h| *h == name).unwrap();
+        csv.lines()
+            .skip(1)
+            .map(|l| l.split(',').nth(at).unwrap().to_string())
+            .collect()
+    };
+    let (float, fixed) = (csv_of("float"), csv_of("fixed"));
+    for name in ["t_enter", "t_exit"] {
+        assert_eq!(column(&fixed, name), column(&float, name), "{name}");
+    }
+    assert!(
+        column(&fixed, "t_exit")
+            .iter()
+            .any(|t| t.parse::<f32>().unwrap() > 0.0),
+        "some rays cross the volume"
+    );
+}
+
+/// Options that would change nothing are refused rather than ignored (found by probing): the
+/// hierarchy without a map, the ideal memory's latency for the SDRAM model, a waveform window
+/// without a waveform, leaping flags for `precision` (its points set the leaping themselves).
+#[test]
+fn options_that_would_change_nothing_are_refused() {
+    let dir = scratch("ignored");
+    let json = dir.join("out.json");
+    let json_ = json.to_str().unwrap();
+    let sim = |extra: &[&str]| -> Vec<String> {
+        let mut args = [
+            "sim",
+            "--dataset",
+            "phantom:sphere:32",
+            "--size",
+            "8x8",
+            "--json",
+            json_,
+        ]
+        .map(String::from)
+        .to_vec();
+        args.extend(extra.iter().map(|s| s.to_string()));
+        args
+    };
+    for (extra, needle) in [
+        (&["--hierarchy"][..], "--hierarchy"),
+        (&["--ideal-latency", "500"][..], "--ideal-latency"),
+        (&["--vcd-cycles", "0..10"][..], "--vcd"),
+    ] {
+        let args = sim(extra);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        assert_fails(&args, &[needle], &json);
+    }
+    // Where they apply, they are taken.
+    for extra in [
+        &["--hierarchy", "--subcube", "8"][..],
+        &["--memory", "ideal", "--ideal-latency", "500"],
+    ] {
+        let args = sim(extra);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let out = vizsim(&args);
+        assert!(
+            out.status.success(),
+            "{extra:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let report = dir.join("precision");
+    assert_fails(
+        &[
+            "precision",
+            "--dataset",
+            "phantom:sphere:32",
+            "--size",
+            "8x8",
+            "--out",
+            report.to_str().unwrap(),
+            "--subcube",
+            "16",
+        ],
+        &["--subcube"],
+        &report,
+    );
+}
+
+/// A frame that reads no voxel (every sub-cube empty: the rays only leap) has no rates per
+/// read: the row-hit rate and the cost per access are null, not figures made from a count of 0.
+#[test]
+fn a_frame_that_reads_nothing_reports_no_rates_per_read() {
+    let dir = scratch("no-reads");
+    let tf = dir.join("clear.toml");
+    std::fs::write(
+        &tf,
+        "name = \"clear\"\n[[points]]\nvalue = 0\nrgba = [0, 0, 0, 0]\n[[points]]\nvalue = 255\nrgba = [1, 1, 1, 0]\n",
+    )
+    .unwrap();
+    let json = dir.join("out.json");
+    let out = vizsim(&[
+        "sim",
+        "--dataset",
+        "phantom:sphere:32",
+        "--size",
+        "8x8",
+        "--tf",
+        tf.to_str().unwrap(),
+        "--subcube",
+        "8",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("no voxel read"));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(report["memory_stats"]["reads"], 0);
+    for field in [
+        "row_hit_rate",
+        "avg_ns_per_voxel_access",
+        "avg_access_latency_cycles",
+    ] {
+        assert!(
+            report["memory_stats"][field].is_null(),
+            "{field}: {}",
+            report["memory_stats"][field]
+        );
+    }
+    // The run's measurements (at the top level) leave them out.
+    for field in ["page_hit_rate", "avg_ns_per_voxel_access"] {
+        assert!(report.get(field).is_none(), "{field}");
+    }
+    assert_eq!(report["row_hits"], 0);
+}
+
+/// A volume of your own has no presets: `--tf zero` is the generic '0' classification (every
+/// non-zero voxel visible), and `class` (the default) says to give `zero` or a file rather
+/// than listing the presets of other datasets (found by probing).
+#[test]
+fn a_volume_of_your_own_renders_with_the_generic_zero_classification() {
+    let dir = scratch("own-volume");
+    let raw = dir.join("blob_16x16x16_uint8.raw");
+    let data: Vec<u8> = (0..16 * 16 * 16)
+        .map(|i| if i % 7 == 0 { 0 } else { (i % 251) as u8 })
+        .collect();
+    std::fs::write(&raw, data).unwrap();
+    let (png, json) = (dir.join("blob.png"), dir.join("blob.json"));
+    let render = |tf: &str| {
+        vizsim(&[
+            "render",
+            "--dataset",
+            raw.to_str().unwrap(),
+            "--tf",
+            tf,
+            "--size",
+            "8x8",
+            "-o",
+            png.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+        ])
+    };
+    let out = render("zero");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(report["transfer_function"], "blob-zero");
+    assert!(report["stats"]["samples"].as_u64().unwrap() > 0);
+    std::fs::remove_file(&png).unwrap();
+    assert_fails(
+        &[
+            "render",
+            "--dataset",
+            raw.to_str().unwrap(),
+            "--size",
+            "8x8",
+            "-o",
+            png.to_str().unwrap(),
+        ],
+        &["`class`", "blob-class", "--tf zero"],
+        &png,
     );
 }

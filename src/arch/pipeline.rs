@@ -540,6 +540,8 @@ pub fn simulate_with<S: SpaceSkipper, M: VoxelMemory>(
                 first_sample: ray.first_k,
                 end_sample: ray.first_k + ray.samples as i64,
                 positions_cut: ray.cut,
+                t_enter: ray.t_range[0],
+                t_exit: ray.t_range[1],
                 ..RayRecord::default()
             };
             progress[ray_id].light = ray.light;

@@ -445,11 +445,19 @@ where
                 object.insert((*name).into(), round(e[PIPELINE_COUNTERS + k]).into());
             }
         }
-        let reads = e[PIPELINE_COUNTERS].max(1.0);
+        // Rates per read are null without a read, as the exact model writes them.
+        let reads = e[PIPELINE_COUNTERS];
+        let per_read = |total: f64, scale: f64| -> Value {
+            if reads > 0.0 {
+                (total / reads * scale).into()
+            } else {
+                Value::Null
+            }
+        };
         if object.contains_key("row_hit_rate") {
             object.insert(
                 "row_hit_rate".into(),
-                (e[PIPELINE_COUNTERS + 1] / reads).into(),
+                per_read(e[PIPELINE_COUNTERS + 1], 1.0),
             );
         }
         let sums = PIPELINE_COUNTERS + MEMORY_COUNTERS.len();
@@ -457,13 +465,13 @@ where
             let period_ns = 1e3 / clock_mhz;
             object.insert(
                 "avg_ns_per_voxel_access".into(),
-                (e[sums] / reads * period_ns).into(),
+                per_read(e[sums], period_ns),
             );
         }
         if object.contains_key("avg_access_latency_cycles") {
             object.insert(
                 "avg_access_latency_cycles".into(),
-                (e[sums + 1] / reads).into(),
+                per_read(e[sums + 1], 1.0),
             );
         }
     }

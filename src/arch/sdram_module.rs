@@ -760,18 +760,20 @@ impl VoxelMemory for SdramMemory {
     fn stats_json(&self) -> serde_json::Value {
         let modules = self.module_stats();
         let sum = |f: fn(&ModuleStats) -> u64| modules.iter().map(f).sum::<u64>();
-        let reads = sum(|s| s.reads).max(1) as f64;
+        // Rates per read are null without a read (a frame that reads no voxel).
+        let reads = sum(|s| s.reads);
+        let per_read = |total: u64| (reads > 0).then(|| total as f64 / reads as f64);
         let period_ns = 1e3 / self.clock_mhz;
         serde_json::json!({
             "model": "sdram",
-            "reads": sum(|s| s.reads),
+            "reads": reads,
             "row_hits": sum(|s| s.row_hits),
             "row_misses": sum(|s| s.row_misses),
-            "row_hit_rate": sum(|s| s.row_hits) as f64 / reads,
+            "row_hit_rate": per_read(sum(|s| s.row_hits)),
             "refreshes": sum(|s| s.refreshes),
             // Module busy time per word read: the published "average memory cost per voxel access".
-            "avg_ns_per_voxel_access": sum(|s| s.busy_cycles) as f64 / reads * period_ns,
-            "avg_access_latency_cycles": sum(|s| s.total_latency_cycles) as f64 / reads,
+            "avg_ns_per_voxel_access": per_read(sum(|s| s.busy_cycles)).map(|c| c * period_ns),
+            "avg_access_latency_cycles": per_read(sum(|s| s.total_latency_cycles)),
             "modules": modules,
         })
     }

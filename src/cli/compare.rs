@@ -20,6 +20,11 @@ pub struct CompareArgs {
 pub fn run(args: CompareArgs) -> Result<()> {
     use vizsim::compare;
     let (a, b, json, diff) = (&args.a, &args.b, args.json.as_deref(), args.diff.as_deref());
+    let outputs: Vec<(&str, &std::path::Path)> = [("--json", json), ("--diff", diff)]
+        .into_iter()
+        .filter_map(|(option, path)| Some((option, path?)))
+        .collect();
+    vizsim::output::check_distinct(&[a.as_path(), b.as_path()], &outputs)?;
     let (wa, ha, pa) = compare::load_rgba(a)?;
     let (wb, hb, pb) = compare::load_rgba(b)?;
     anyhow::ensure!(

@@ -228,7 +228,7 @@ fn dynamic_sequence(out: &Path, hardware: &HardwareConfig) -> Result<()> {
          {:.1} frames/s after the download -> {}",
         report.steps.len(),
         start.elapsed().as_secs_f64(),
-        report.steady_fps,
+        report.steady_fps.unwrap_or(report.fps),
         sheet.display()
     );
     Ok(())

@@ -16,7 +16,7 @@ mod sweep;
 mod update;
 mod verify_skip;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -190,6 +190,22 @@ pub struct FrameArgs {
 }
 
 impl FrameArgs {
+    /// Files the frame may read (the dataset, the transfer function, the camera path, the
+    /// hardware configuration), for `output::check_distinct`: names that are no file are left
+    /// to it.
+    pub fn inputs<'a>(&'a self, hardware: &'a HardwareArgs) -> Vec<&'a Path> {
+        let camera_path = self
+            .view
+            .strip_prefix("path:")
+            .and_then(|rest| rest.rsplit_once(':'))
+            .map(|(file, _)| Path::new(file));
+        [Path::new(&self.dataset), Path::new(&self.tf)]
+            .into_iter()
+            .chain(camera_path)
+            .chain(hardware.config.as_deref())
+            .collect()
+    }
+
     /// The run these arguments and `hardware` describe, for `model`.
     pub fn describe(&self, model: Model, hardware: &HardwareArgs) -> Result<RunDescription> {
         let mut extra = Vec::new();
@@ -253,10 +269,19 @@ impl HardwareArgs {
         }
         overrides.extend(extra.iter().cloned());
         let config = HardwareConfig::load(self.config.as_deref(), &overrides);
-        match &self.config {
-            Some(path) => Ok(config.with_context(|| format!("--config {}", path.display()))?),
-            None => Ok(config?),
-        }
+        let config = match &self.config {
+            Some(path) => config.with_context(|| format!("--config {}", path.display()))?,
+            None => config?,
+        };
+        let occupancy = &config.occupancy;
+        anyhow::ensure!(
+            !self.hierarchy
+                || occupancy.subcube > 0
+                || occupancy.structure != vizsim::config::LeapStructure::Map,
+            "--hierarchy: there is no occupancy map to build it on (give --subcube N, or \
+             occupancy.subcube in the configuration)"
+        );
+        Ok(config)
     }
 
     /// Whether any leaping flag was given.

@@ -51,7 +51,7 @@ pub fn run(args: OccupancyArgs) -> Result<()> {
     use vizsim::occupancy::{OccupancyKind, OccupancyMap, SUBCUBE_SIZES};
     let config = hardware.load(&[])?;
     let volume = data.load(spec)?;
-    let tf = vizsim::transfer::resolve(tf_arg, &volume.name)?;
+    let tf = vizsim::transfer::resolve_for(tf_arg, &volume)?;
     let table = ClassificationTable::build(
         &tf,
         volume.max_value() as usize + 1,

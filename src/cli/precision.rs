@@ -31,7 +31,7 @@ pub struct PrecisionArgs {
     /// Output folder for the tables (CSV, Markdown, JSON) and charts (PNG, SVG).
     #[arg(long, default_value = "reports/precision")]
     out: PathBuf,
-    /// The base configuration; each point changes one width of it (leaping flags are ignored:
+    /// The base configuration; each point changes one width of it (without leaping flags:
     /// image points run without leaping, cost points with 8³ class-map leaping).
     #[command(flatten)]
     hardware: HardwareArgs,
@@ -50,6 +50,14 @@ pub fn run(args: PrecisionArgs) -> Result<()> {
         shading: false,
     };
     let base = frame.describe(Model::Step, &args.hardware)?;
+    // Its points set the leaping themselves: a leaping flag would only mislabel the report.
+    let occupancy = &base.hardware.occupancy;
+    anyhow::ensure!(
+        !args.hardware.asks_for_leaping() && occupancy.subcube == 0 && !occupancy.hierarchy,
+        "precision runs its image points without leaping and its cost points with 8³ class-map \
+         leaping: --subcube, --hierarchy, --occupancy (or occupancy.subcube and \
+         occupancy.hierarchy in the configuration) do not apply"
+    );
     println!("{}", args.hardware.resolved_line(&base.hardware));
     let volume = args.data.load(&args.dataset)?;
     let start = Instant::now();

@@ -50,6 +50,15 @@ pub fn run(args: RenderArgs) -> Result<()> {
     );
     let desc = args.frame.describe(model, &args.hardware)?;
     // Output paths are checked before the render, not after it.
+    let outputs: Vec<(&str, &std::path::Path)> = [
+        ("--output", Some(&args.output)),
+        ("--json", args.json.as_ref()),
+        ("--rays", args.rays.as_ref()),
+    ]
+    .into_iter()
+    .filter_map(|(option, path)| Some((option, path?.as_path())))
+    .collect();
+    vizsim::output::check_distinct(&args.frame.inputs(&args.hardware), &outputs)?;
     for path in [Some(&args.output), args.rays.as_ref(), args.json.as_ref()]
         .into_iter()
         .flatten()

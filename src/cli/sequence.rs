@@ -104,26 +104,42 @@ pub fn run(args: SequenceArgs) -> Result<()> {
     }
     let ms = |cycles: f64| cycles / (report.clock_mhz * 1e3);
     println!(
-        "{} {:?}, map {}, {}³ sub-cubes, {}³ bricks, ordering: {} (update, map, render in turn)",
+        "{} {:?}, map {}{}, {}³ bricks, ordering: {} (update, map, render in turn)",
         report.source,
         report.dims,
         report.map.name(),
-        report.subcube,
+        report
+            .subcube
+            .map(|s| format!(", {s}³ sub-cubes"))
+            .unwrap_or_default(),
         report.brick,
         report.ordering
     );
-    println!(
-        "steps after the first, mean: update {:.0} ({:.2} ms) + map {:.0} ({:.2} ms) + render {:.0} ({:.2} ms) cycles",
+    match (
         report.mean_update_cycles,
-        ms(report.mean_update_cycles),
         report.mean_map_cycles,
-        ms(report.mean_map_cycles),
         report.mean_render_cycles,
-        ms(report.mean_render_cycles),
-    );
-    println!(
-        "sequence: {:.2} frames/s after the first step ({:.2} frames/s with the download of step 0)",
-        report.steady_fps, report.fps
-    );
+        report.steady_fps,
+    ) {
+        (Some(update), Some(map), Some(render), Some(steady)) => {
+            println!(
+                "steps after the first, mean: update {update:.0} ({:.2} ms) + map {map:.0} ({:.2} \
+                 ms) + render {render:.0} ({:.2} ms) cycles",
+                ms(update),
+                ms(map),
+                ms(render),
+            );
+            println!(
+                "sequence: {steady:.2} frames/s after the first step ({:.2} frames/s with the \
+                 download of step 0)",
+                report.fps
+            );
+        }
+        _ => println!(
+            "sequence: one step, the download: {:.2} frames/s (--steps 2 or more for the rate of \
+             the steps after it)",
+            report.fps
+        ),
+    }
     Ok(())
 }

@@ -19,9 +19,9 @@ pub struct SimArgs {
     /// Write a VCD waveform (GTKWave, Surfer) of the cycles given by --vcd-cycles.
     #[arg(long)]
     vcd: Option<PathBuf>,
-    /// Cycle window of the waveform, A..B.
-    #[arg(long, default_value = "0..10000")]
-    vcd_cycles: String,
+    /// Cycle window of the waveform, A..B (default 0..10000).
+    #[arg(long, requires = "vcd")]
+    vcd_cycles: Option<String>,
     /// Write every SDRAM command to this CSV file (gzip when it ends in .gz): cycle, module,
     /// command, bank, row, column, tag; the timing parameters in its header (docs/waveforms.md).
     #[arg(long)]
@@ -34,9 +34,9 @@ pub struct SimArgs {
     /// (docs/sampling.md). Default: every cycle simulated.
     #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
     sample: Option<f64>,
-    /// Latency of the ideal memory, in cycles (1..=1048576).
-    #[arg(long, default_value_t = 6)]
-    ideal_latency: u64,
+    /// Latency of the ideal memory (--memory ideal), in cycles (1..=1048576; default 6).
+    #[arg(long)]
+    ideal_latency: Option<u64>,
     #[command(flatten)]
     hardware: HardwareArgs,
     /// Output PNG.
@@ -55,10 +55,17 @@ enum MemoryArg {
 
 pub fn run(args: SimArgs) -> Result<()> {
     let mut desc = args.frame.describe(Model::Cycle, &args.hardware)?;
+    let ideal_latency = args.ideal_latency.unwrap_or(6);
     desc.memory = match args.memory {
-        MemoryArg::Sdram => Memory::Sdram,
+        MemoryArg::Sdram => {
+            anyhow::ensure!(
+                args.ideal_latency.is_none(),
+                "--ideal-latency applies to --memory ideal (the SDRAM model times every access)"
+            );
+            Memory::Sdram
+        }
         MemoryArg::Ideal => Memory::Ideal {
-            latency: args.ideal_latency,
+            latency: ideal_latency,
         },
     };
     desc.sample = args
@@ -72,6 +79,16 @@ pub fn run(args: SimArgs) -> Result<()> {
     );
     desc.validate()?;
     // Output paths are checked before the simulation, not after it.
+    let outputs: Vec<(&str, &std::path::Path)> = [
+        ("--output", &args.output),
+        ("--json", &args.json),
+        ("--vcd", &args.vcd),
+        ("--command-trace", &args.command_trace),
+    ]
+    .into_iter()
+    .filter_map(|(option, path)| Some((option, path.as_deref()?)))
+    .collect();
+    vizsim::output::check_distinct(&args.frame.inputs(&args.hardware), &outputs)?;
     for path in [&args.output, &args.json].into_iter().flatten() {
         vizsim::output::check_writable(path)?;
     }
@@ -101,7 +118,7 @@ pub fn run(args: SimArgs) -> Result<()> {
         Some(path) => Some(Waveform::for_config(
             path,
             config,
-            parse_window(&args.vcd_cycles)?,
+            parse_window(args.vcd_cycles.as_deref().unwrap_or("0..10000"))?,
         )?),
         None => None,
     };
@@ -127,13 +144,14 @@ pub fn run(args: SimArgs) -> Result<()> {
     let stalls = m.stall_cycles.unwrap_or_default();
     let cycles = m.cycles.unwrap_or_default();
     let frame_time_ns = m.frame_time_ns.unwrap_or_default();
-    let memory_line = match (m.page_hit_rate, m.avg_ns_per_voxel_access) {
-        (Some(hits), Some(ns)) => format!(
+    let memory_line = match (desc.memory, m.page_hit_rate, m.avg_ns_per_voxel_access) {
+        (Memory::Ideal { latency }, ..) => format!("; ideal memory, {latency} cycles latency"),
+        (_, Some(hits), Some(ns)) => format!(
             "; SDRAM {:.1} % row hits, {:.2} ns per voxel access",
             100.0 * hits,
             ns
         ),
-        _ => format!("; ideal memory, {} cycles latency", args.ideal_latency),
+        _ => "; SDRAM: no voxel read".to_string(),
     };
     println!(
         "{}: {} cycles = {:.3} ms/frame = {:.1} fps at {} MHz; {}, {} ray selection, ERT {}; \

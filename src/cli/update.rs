@@ -43,7 +43,7 @@ pub fn run(args: UpdateArgs) -> Result<()> {
         .subcube
         .context("--subcube: the sub-cube size of the maps is required")?;
     let volume = args.data.load(&args.dataset)?;
-    let tf = vizsim::transfer::resolve(&args.tf, &volume.name).context("--tf")?;
+    let tf = vizsim::transfer::resolve_for(&args.tf, &volume).context("--tf")?;
     let table = ClassificationTable::build(
         &tf,
         1usize << volume.bits,

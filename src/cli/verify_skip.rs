@@ -20,7 +20,8 @@ pub struct VerifySkipArgs {
     /// Sub-cube edge in voxels (2..64); several allowed.
     #[arg(long, default_values_t = [16])]
     subcube: Vec<usize>,
-    /// Reciprocal rounding: `down` (shipped, safe) or `nearest` (unsafe, shows the checker works).
+    /// Reciprocal rounding: `down` (shipped, safe) or `nearest` (unsafe, shows the checker
+    /// works). Any violation makes the exit status 1.
     #[arg(long, value_enum, default_value = "down")]
     rounding: RoundingArg,
     /// Largest increment enumerated, in voxels (default 1: one sample per voxel or finer).
@@ -96,5 +97,12 @@ pub fn run(args: VerifySkipArgs) -> Result<()> {
         };
         println!("{}", serde_json::to_string_pretty(&value)?);
     }
+    // A violation is a failed check: scripts see it in the exit status.
+    let violations: u64 = reports.iter().map(|r| r.violations).sum();
+    anyhow::ensure!(
+        violations == 0,
+        "{violations} violations: the skip calculator leaps past a sample at these widths and \
+         this rounding (the report above says where first)"
+    );
     Ok(())
 }

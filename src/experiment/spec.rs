@@ -796,7 +796,7 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
     // preset): checked here so that a sweep fails before it writes anything.
     for (name, volume) in &volumes {
         for tf in &experiment.tf {
-            crate::transfer::resolve(tf, &volume.name)
+            crate::transfer::resolve_for(tf, volume)
                 .map_err(|e| bad("tf", format!("`{tf}` for dataset `{name}`: {e}")))?;
         }
     }

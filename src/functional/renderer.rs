@@ -549,6 +549,8 @@ impl<'a> FixedRenderer<'a> {
             hit: ray.samples > 0,
             first_sample: ray.first_k,
             end_sample: ray.first_k + ray.samples as i64,
+            t_enter: ray.t_range[0],
+            t_exit: ray.t_range[1],
             ..RayRecord::default()
         };
         let mut acc = Accumulator::default();

@@ -17,7 +17,7 @@ use crate::render::{clip_to_box, sample_range};
 use crate::shading::LIGHT_FRAC_BITS;
 use crate::skip::{ray_reciprocals, Reciprocal, ReciprocalRounding};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FixedRay {
     /// Position of the first sample, in units of 2^-position_frac_bits voxels.
     pub start: [i64; 3],
@@ -42,6 +42,9 @@ pub struct FixedRay {
     /// The position before `start` is a position of the ray that only bricks cut (so below
     /// any iso value): an iso hit at `start` refines back to it as it would without bricks.
     pub refinable_start: bool,
+    /// Ray parameter (voxels) where the ray enters and leaves the box, as the float
+    /// reference's `RayRecord` has them; 0, 0 when it misses the box. For reports only.
+    pub t_range: [f32; 2],
 }
 
 /// Checks that the widths can represent positions inside this volume and increments at this
@@ -91,9 +94,15 @@ pub fn setup_ray(ray: &Ray, dims: [usize; 3], spacing: f32, widths: &Widths) -> 
         bricks_visited: 0,
         surface: None,
         refinable_start: false,
+        t_range: [0.0; 2],
     };
     let Some((t_enter, t_exit)) = clip_to_box(ray, dims) else {
         return miss;
+    };
+    // From here on the ray enters the box, sampled or not.
+    let miss = FixedRay {
+        t_range: [t_enter, t_exit],
+        ..miss
     };
     let (first, end) = sample_range(t_enter, t_exit, spacing);
     if end <= first {
