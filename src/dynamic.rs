@@ -604,8 +604,7 @@ pub fn run_sequence(
             "--map {}: the run must leap with an occupancy map (a sub-cube size, and \
              occupancy.structure = \"map\", not {}); or --map none",
             options.map.name(),
-            serde_json::to_string(&render_run.hardware.occupancy.structure)
-                .unwrap_or_default()
+            serde_json::to_string(&render_run.hardware.occupancy.structure).unwrap_or_default()
         )));
     }
     let plain_run = {

@@ -446,3 +446,43 @@ fn the_sequence_command_reports_every_step_and_rejects_bad_input() {
         );
     }
 }
+
+/// One step has no steps after it: the figures of the steps after the first are null, not the
+/// first step's again; without a map there is no sub-cube size to report (found by probing).
+#[test]
+fn a_single_step_has_no_rate_after_the_first_and_no_map_no_subcube() {
+    let run = |extra: &[&str]| -> serde_json::Value {
+        let mut args = vec![
+            "sequence",
+            "--source",
+            "phantom:tsdf:32",
+            "--size",
+            "16x16",
+            "--brick",
+            "4",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        let out = vizsim(&args);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let one = run(&["--steps", "1", "--subcube", "4"]);
+    assert!(one["fps"].as_f64().unwrap() > 0.0);
+    for field in [
+        "steady_fps",
+        "mean_update_cycles",
+        "mean_map_cycles",
+        "mean_render_cycles",
+    ] {
+        assert!(one[field].is_null(), "{field}: {}", one[field]);
+    }
+    assert_eq!(one["subcube"], 4);
+    let two = run(&["--steps", "2", "--map", "none"]);
+    assert!(two["steady_fps"].as_f64().unwrap() > 0.0);
+    assert!(two["subcube"].is_null(), "{}", two["subcube"]);
+}
