@@ -609,6 +609,21 @@ fn the_update_command_prints_the_costs_and_rejects_bad_input() {
             "equal extents",
         ),
         (vec!["update", "phantom:sphere:32"], "--subcube"),
+        // Flags that would change nothing (found by probing: the output was identical).
+        (
+            vec![
+                "update",
+                "phantom:sphere:32",
+                "--subcube",
+                "4",
+                "--hierarchy",
+            ],
+            "--hierarchy",
+        ),
+        (
+            vec!["occupancy", "phantom:sphere:32", "--subcube", "8"],
+            "--subcube",
+        ),
         (
             vec![
                 "update",

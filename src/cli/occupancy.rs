@@ -49,6 +49,11 @@ pub fn run(args: OccupancyArgs) -> Result<()> {
     );
     use vizsim::functional::arith::ClassificationTable;
     use vizsim::occupancy::{OccupancyKind, OccupancyMap, SUBCUBE_SIZES};
+    anyhow::ensure!(
+        !hardware.asks_for_leaping() && hardware.bricks.is_none(),
+        "occupancy lists every sub-cube size, both maps, with and without the hierarchy: \
+         --subcube, --hierarchy, --occupancy and --bricks do not apply"
+    );
     let config = hardware.load(&[])?;
     let volume = data.load(spec)?;
     let tf = vizsim::transfer::resolve_for(tf_arg, &volume)?;

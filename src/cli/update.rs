@@ -37,6 +37,14 @@ pub fn run(args: UpdateArgs) -> Result<()> {
         args.brick >= 1,
         "--brick 0: the brick edge must be at least 1"
     );
+    anyhow::ensure!(
+        !args.hardware.hierarchy
+            && args.hardware.occupancy.is_none()
+            && args.hardware.bricks.is_none(),
+        "update measures the occupancy map at --subcube (its cycles do not depend on the map's \
+         kind), without the hierarchy and bricks: --hierarchy, --occupancy and --bricks do not \
+         apply"
+    );
     let config = args.hardware.load(&[])?;
     let subcube = args
         .hardware
