@@ -790,3 +790,82 @@ fn a_volume_of_your_own_renders_with_the_generic_zero_classification() {
         &png,
     );
 }
+
+/// Messages name the option or setting at fault, as the user wrote it (found by probing: the
+/// skip calculator's field names, "too many" for zero, a missing data folder without the
+/// variable that named it, "File exists" for a plot folder that is a file), and a waveform
+/// window after the frame is said to be empty.
+#[test]
+fn messages_name_the_option_at_fault() {
+    let dir = scratch("messages");
+    for (args, needle) in [
+        (
+            &["verify-skip", "--increment-bits", "40"][..],
+            "--position-bits",
+        ),
+        (
+            &["verify-skip", "--max-increment-voxels", "0"],
+            "at least 1",
+        ),
+    ] {
+        assert_fails(args, &[needle], &dir.join("none"));
+    }
+    let out = Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args(["info", "fuel"])
+        .env("VIZSIM_DATA", dir.join("missing"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("VIZSIM_DATA"),
+        "{stderr}"
+    );
+    let file = dir.join("plots.png");
+    std::fs::write(&file, b"not a folder").unwrap();
+    let sweep = dir.join("sweep");
+    let exp = dir.join("e.toml");
+    std::fs::write(
+        &exp,
+        "name = \"m\"\ndatasets = [\"phantom:sphere:16\"]\ntf = [\"class\"]\nmodes = [\"none\"]\n\
+         models = [\"step\"]\n[frames]\norbit = 1\nsize = \"8x8\"\n",
+    )
+    .unwrap();
+    let swept = vizsim(&[
+        "sweep",
+        exp.to_str().unwrap(),
+        "--out",
+        sweep.to_str().unwrap(),
+    ]);
+    assert!(
+        swept.status.success(),
+        "{}",
+        String::from_utf8_lossy(&swept.stderr)
+    );
+    for command in ["plot", "table"] {
+        let out = vizsim(&[
+            command,
+            sweep.to_str().unwrap(),
+            "--out",
+            file.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && stderr.contains("is a file, not a folder"),
+            "{command}: {stderr}"
+        );
+    }
+    let vcd = dir.join("w.vcd");
+    let out = vizsim(&[
+        "sim",
+        "--dataset",
+        "phantom:sphere:16",
+        "--size",
+        "8x8",
+        "--vcd",
+        vcd.to_str().unwrap(),
+        "--vcd-cycles",
+        "100000..200000",
+    ]);
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("holds no cycle"));
+}

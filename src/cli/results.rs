@@ -52,6 +52,7 @@ pub struct PlotArgs {
 
 pub fn plot(args: PlotArgs) -> Result<()> {
     let out = args.out.unwrap_or_else(|| args.results.dir.join("plots"));
+    vizsim::experiment::store::must_be_a_folder(&out)?;
     let lines = args.results.read()?;
     let written = vizsim::figures::write_all(&lines, &out)?;
     println!("{written} charts -> {}", out.display());
@@ -137,6 +138,7 @@ pub fn write_tables(
     let out = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| dir.join("tables"));
+    vizsim::experiment::store::must_be_a_folder(&out)?;
     let metrics = if metrics.is_empty() {
         vec![Metric::Fps, Metric::Cycles, Metric::Steps, Metric::PageHits]
     } else {

@@ -114,12 +114,9 @@ pub fn run(args: SimArgs) -> Result<()> {
         None => None,
     };
     // The timescale follows the configured clock.
+    let vcd_window = parse_window(args.vcd_cycles.as_deref().unwrap_or("0..10000"))?;
     let mut waveform = match &args.vcd {
-        Some(path) => Some(Waveform::for_config(
-            path,
-            config,
-            parse_window(args.vcd_cycles.as_deref().unwrap_or("0..10000"))?,
-        )?),
+        Some(path) => Some(Waveform::for_config(path, config, vcd_window.clone())?),
         None => None,
     };
     let probes = Probes {
@@ -137,10 +134,20 @@ pub fn run(args: SimArgs) -> Result<()> {
                 .unwrap_or_default()
         );
     }
+    let m = &report.measurements;
     if let Some(w) = waveform {
         w.finish()?;
+        let last = m.cycles.unwrap_or_default();
+        if vcd_window.start >= last {
+            eprintln!(
+                "warning: --vcd-cycles {}..{} begins after the frame's last cycle ({}): the \
+                 waveform holds no cycle",
+                vcd_window.start,
+                vcd_window.end,
+                last.saturating_sub(1)
+            );
+        }
     }
-    let m = &report.measurements;
     let stalls = m.stall_cycles.unwrap_or_default();
     let cycles = m.cycles.unwrap_or_default();
     let frame_time_ns = m.frame_time_ns.unwrap_or_default();

@@ -46,7 +46,26 @@ pub fn run(args: VerifySkipArgs) -> Result<()> {
         args.reciprocal_bits,
         args.distance_bits.unwrap_or(position_bits),
     )
-    .map_err(|e| anyhow::anyhow!("verify-skip: {e}"))?;
+    .map_err(|e| {
+        // Name the options, not the calculator's fields they set.
+        let e = e
+            .to_string()
+            .replace(
+                "`pos_frac_bits`",
+                "--position-bits (default: --increment-bits)",
+            )
+            .replace("`inc_frac_bits`", "--increment-bits")
+            .replace("`reciprocal_bits`", "--reciprocal-bits")
+            .replace(
+                "`distance_frac_bits`",
+                "--distance-bits (default: the position bits)",
+            );
+        anyhow::anyhow!("verify-skip: {e}")
+    })?;
+    anyhow::ensure!(
+        args.max_increment_voxels >= 1,
+        "--max-increment-voxels 0: must be at least 1 (voxels per sample step)"
+    );
     let (subcubes, rounding, max_increment_voxels, json) = (
         &args.subcube,
         args.rounding,

@@ -201,7 +201,7 @@ pub fn lock_folder(dir: &Path) -> Result<File> {
 pub fn must_be_a_folder(dir: &Path) -> Result<()> {
     if dir.exists() && !dir.is_dir() {
         return Err(Error::Invalid(format!(
-            "{}: is a file, not a folder (--out names the folder of results)",
+            "{}: is a file, not a folder (--out names a folder)",
             dir.display()
         )));
     }

@@ -141,6 +141,19 @@ pub fn load(spec: &str, data_dir: Option<&Path>) -> Result<Volume> {
         .map(|(_, name)| *name)
         .unwrap_or(spec);
     let available = match data_dir {
+        // A folder that is not there, named with where it came from (a stale environment).
+        Some(dir) if !dir.is_dir() => {
+            let from_env = std::env::var_os(DATA_DIR_ENV).is_some_and(|v| Path::new(&v) == dir);
+            return Err(Error::Invalid(format!(
+                "dataset `{spec}`: the data folder {} does not exist{}",
+                dir.display(),
+                if from_env {
+                    format!(" (it is {DATA_DIR_ENV}; give --data-dir or set {DATA_DIR_ENV} to the folder of the datasets)")
+                } else {
+                    String::new()
+                }
+            )));
+        }
         Some(dir) => scan(dir)?,
         None => Vec::new(),
     };
