@@ -4,10 +4,68 @@
 //! through (a rename would replace the device node with a file and hide a full disk), and a
 //! symlink to a regular file has its target replaced, so the link stays.
 
+use std::cell::RefCell;
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
+
+/// The renames an `all_or_none` scope holds back, (temporary, target), in write order. Shared:
+/// a `PendingFile` created in the scope may be committed from another thread (a writer thread).
+type HeldBack = std::sync::Arc<std::sync::Mutex<Vec<(PathBuf, PathBuf)>>>;
+
+thread_local! {
+    /// The scope of `all_or_none` this thread is in.
+    static HELD_BACK: RefCell<Option<HeldBack>> = const { RefCell::new(None) };
+}
+
+/// Runs `write`, which writes a command's outputs, so that they appear together or not at all:
+/// the files written atomically (regular files, `write_atomically`, `PendingFile`) are renamed
+/// into place only when `write` succeeds; when it fails none is, and their temporaries are
+/// removed (a run whose JSON cannot be written leaves no PNG that looks like a result). Outputs
+/// written through (devices, FIFOs) are written as they come.
+pub fn all_or_none<T, E: From<Error>>(
+    write: impl FnOnce() -> std::result::Result<T, E>,
+) -> std::result::Result<T, E> {
+    let scope = HeldBack::default();
+    HELD_BACK.with(|h| *h.borrow_mut() = Some(scope.clone()));
+    let result = write();
+    HELD_BACK.with(|h| *h.borrow_mut() = None);
+    let held = std::mem::take(&mut *scope.lock().unwrap_or_else(|e| e.into_inner()));
+    if result.is_err() {
+        for (tmp, _) in &held {
+            let _ = std::fs::remove_file(tmp);
+        }
+        return result;
+    }
+    for (i, (tmp, path)) in held.iter().enumerate() {
+        if let Err(e) = std::fs::rename(tmp, path) {
+            for (tmp, _) in &held[i..] {
+                let _ = std::fs::remove_file(tmp);
+            }
+            return Err(Error::io(path, e).into());
+        }
+    }
+    result
+}
+
+/// The `all_or_none` scope this thread is in, if any.
+fn current_scope() -> Option<HeldBack> {
+    HELD_BACK.with(|h| h.borrow().clone())
+}
+
+/// Renames a finished temporary to its target, or holds the rename back for `scope`.
+fn move_into_place(scope: Option<&HeldBack>, tmp: &Path, path: &Path) -> std::io::Result<()> {
+    match scope {
+        Some(held) => {
+            held.lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .push((tmp.to_path_buf(), path.to_path_buf()));
+            Ok(())
+        }
+        None => std::fs::rename(tmp, path),
+    }
+}
 
 /// The temporary name a file is written under before it is renamed to `path`: hidden, in the
 /// same folder (created if missing), so the rename never crosses file systems.
@@ -269,7 +327,7 @@ pub fn write_atomically(
         writer.flush()?;
         writer.get_ref().sync_all()?;
         drop(writer);
-        std::fs::rename(&tmp, path)
+        move_into_place(current_scope().as_ref(), &tmp, path)
     })();
     if let Err(e) = result {
         let _ = std::fs::remove_file(&tmp);
@@ -296,6 +354,8 @@ pub struct PendingFile {
     tmp: Option<std::path::PathBuf>,
     writer: std::io::BufWriter<Sink>,
     committed: bool,
+    /// The `all_or_none` scope it was created in: its commit renames when the scope ends.
+    scope: Option<HeldBack>,
 }
 
 impl PendingFile {
@@ -317,6 +377,7 @@ impl PendingFile {
             tmp,
             writer: std::io::BufWriter::with_capacity(1 << 18, file),
             committed: false,
+            scope: current_scope(),
         })
     }
 
@@ -338,7 +399,7 @@ impl PendingFile {
             match &self.tmp {
                 Some(tmp) => {
                     self.writer.get_ref().sync_all()?;
-                    std::fs::rename(tmp, &self.path)
+                    move_into_place(self.scope.as_ref(), tmp, &self.path)
                 }
                 None => Ok(()),
             }

@@ -869,3 +869,51 @@ fn messages_name_the_option_at_fault() {
     assert!(out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("holds no cycle"));
 }
+
+/// A run whose last output cannot be written leaves none of its outputs: the image, the
+/// command trace and the waveform written before it would look like a finished run (found by
+/// probing: `--json /dev/full` left the PNG).
+#[test]
+fn a_run_that_fails_to_write_one_output_leaves_none() {
+    let dir = scratch("all-or-none");
+    let (png, trace, vcd) = (dir.join("f.png"), dir.join("t.csv"), dir.join("w.vcd"));
+    let frame = ["--dataset", "phantom:sphere:32", "--size", "8x8"];
+    let mut sim = vec!["sim"];
+    sim.extend(frame);
+    sim.extend([
+        "-o",
+        png.to_str().unwrap(),
+        "--command-trace",
+        trace.to_str().unwrap(),
+        "--vcd",
+        vcd.to_str().unwrap(),
+    ]);
+    let mut render = vec!["render"];
+    render.extend(frame);
+    render.extend(["-o", png.to_str().unwrap()]);
+    for args in [&sim, &render] {
+        let mut failing = args.clone();
+        failing.extend(["--json", "/dev/full"]);
+        assert_fails(&failing, &["/dev/full"], &png);
+        assert!(
+            !trace.exists() && !vcd.exists(),
+            "{args:?} left its trace or waveform"
+        );
+        let leftovers: Vec<_> = std::fs::read_dir(&dir).unwrap().flatten().collect();
+        assert!(leftovers.is_empty(), "temporaries left: {leftovers:?}");
+        // Written together when every output can be.
+        let json = dir.join("ok.json");
+        let mut working = args.clone();
+        working.extend(["--json", json.to_str().unwrap()]);
+        let out = vizsim(&working);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(png.exists() && json.exists());
+        for file in std::fs::read_dir(&dir).unwrap().flatten() {
+            std::fs::remove_file(file.path()).unwrap();
+        }
+    }
+}

@@ -66,14 +66,16 @@ pub fn run(args: RenderArgs) -> Result<()> {
         vizsim::output::check_writable(path)?;
     }
     println!("{}", args.hardware.resolved_line(&desc.hardware));
-    let report = run::run(&desc, args.frame.data.dir()?.as_deref(), Probes::default())?;
-    report.frame.write_png(&args.output)?;
-    if let Some(path) = &args.rays {
-        report.frame.write_rays_csv(path)?;
-    }
-    let stats = &report.stats;
-    let m = &report.measurements;
-    println!(
+    // The outputs appear together or not at all (a JSON that cannot be written leaves no PNG).
+    vizsim::output::all_or_none(|| -> Result<()> {
+        let report = run::run(&desc, args.frame.data.dir()?.as_deref(), Probes::default())?;
+        report.frame.write_png(&args.output)?;
+        if let Some(path) = &args.rays {
+            report.frame.write_rays_csv(path)?;
+        }
+        let stats = &report.stats;
+        let m = &report.measurements;
+        println!(
         "{} ({} model, {}): {} rays, {} hit, {} samples ({} leap samples), {} leaps, {} terminated early{}, {:.3} s ({:.1} M samples/s) -> {}",
         report.volume,
         model.name(),
@@ -91,14 +93,15 @@ pub fn run(args: RenderArgs) -> Result<()> {
         report.samples_per_second / 1e6,
         args.output.display()
     );
-    if report.measurements.ray_range.is_some() {
-        println!("{}", super::ray_range_text(&report.measurements));
-    }
-    if report.measurements.blocking.is_some() {
-        println!("{}", super::blocking_text(&report.measurements));
-    }
-    if let Some(json) = &args.json {
-        vizsim::output::write_json(json, &report)?;
-    }
-    Ok(())
+        if report.measurements.ray_range.is_some() {
+            println!("{}", super::ray_range_text(&report.measurements));
+        }
+        if report.measurements.blocking.is_some() {
+            println!("{}", super::blocking_text(&report.measurements));
+        }
+        if let Some(json) = &args.json {
+            vizsim::output::write_json(json, &report)?;
+        }
+        Ok(())
+    })
 }

@@ -100,67 +100,70 @@ pub fn run(args: SimArgs) -> Result<()> {
         args.command_trace.is_none() || desc.memory == Memory::Sdram,
         "--command-trace needs --memory sdram (the ideal memory issues no commands)"
     );
-    let mut command_trace = match &args.command_trace {
-        Some(path) => {
-            let window = args
-                .trace_cycles
-                .as_deref()
-                .map(|t| parse_cycle_window("--trace-cycles", t))
-                .transpose()?;
-            let mut trace = CommandTrace::create(path, config, window)?;
-            trace.note(&super::invocation())?;
-            Some(trace)
-        }
-        None => None,
-    };
-    // The timescale follows the configured clock.
-    let vcd_window = parse_window(args.vcd_cycles.as_deref().unwrap_or("0..10000"))?;
-    let mut waveform = match &args.vcd {
-        Some(path) => Some(Waveform::for_config(path, config, vcd_window.clone())?),
-        None => None,
-    };
-    let probes = Probes {
-        waveform: waveform.as_mut(),
-        command_trace: command_trace.as_mut(),
-    };
-    let report = run::run(&desc, args.frame.data.dir()?.as_deref(), probes)?;
-    if let Some(t) = command_trace {
-        let commands = t.finish()?;
-        println!(
-            "{commands} SDRAM commands -> {}",
-            args.command_trace
-                .as_ref()
-                .map(|p| p.display().to_string())
-                .unwrap_or_default()
-        );
-    }
-    let m = &report.measurements;
-    if let Some(w) = waveform {
-        w.finish()?;
-        let last = m.cycles.unwrap_or_default();
-        if vcd_window.start >= last {
-            eprintln!(
-                "warning: --vcd-cycles {}..{} begins after the frame's last cycle ({}): the \
-                 waveform holds no cycle",
-                vcd_window.start,
-                vcd_window.end,
-                last.saturating_sub(1)
+    // The outputs appear together or not at all (a JSON that cannot be written leaves no PNG,
+    // trace or waveform).
+    vizsim::output::all_or_none(|| -> Result<()> {
+        let mut command_trace = match &args.command_trace {
+            Some(path) => {
+                let window = args
+                    .trace_cycles
+                    .as_deref()
+                    .map(|t| parse_cycle_window("--trace-cycles", t))
+                    .transpose()?;
+                let mut trace = CommandTrace::create(path, config, window)?;
+                trace.note(&super::invocation())?;
+                Some(trace)
+            }
+            None => None,
+        };
+        // The timescale follows the configured clock.
+        let vcd_window = parse_window(args.vcd_cycles.as_deref().unwrap_or("0..10000"))?;
+        let mut waveform = match &args.vcd {
+            Some(path) => Some(Waveform::for_config(path, config, vcd_window.clone())?),
+            None => None,
+        };
+        let probes = Probes {
+            waveform: waveform.as_mut(),
+            command_trace: command_trace.as_mut(),
+        };
+        let report = run::run(&desc, args.frame.data.dir()?.as_deref(), probes)?;
+        if let Some(t) = command_trace {
+            let commands = t.finish()?;
+            println!(
+                "{commands} SDRAM commands -> {}",
+                args.command_trace
+                    .as_ref()
+                    .map(|p| p.display().to_string())
+                    .unwrap_or_default()
             );
         }
-    }
-    let stalls = m.stall_cycles.unwrap_or_default();
-    let cycles = m.cycles.unwrap_or_default();
-    let frame_time_ns = m.frame_time_ns.unwrap_or_default();
-    let memory_line = match (desc.memory, m.page_hit_rate, m.avg_ns_per_voxel_access) {
-        (Memory::Ideal { latency }, ..) => format!("; ideal memory, {latency} cycles latency"),
-        (_, Some(hits), Some(ns)) => format!(
-            "; SDRAM {:.1} % row hits, {:.2} ns per voxel access",
-            100.0 * hits,
-            ns
-        ),
-        _ => "; SDRAM: no voxel read".to_string(),
-    };
-    println!(
+        let m = &report.measurements;
+        if let Some(w) = waveform {
+            w.finish()?;
+            let last = m.cycles.unwrap_or_default();
+            if vcd_window.start >= last {
+                eprintln!(
+                    "warning: --vcd-cycles {}..{} begins after the frame's last cycle ({}): the \
+                 waveform holds no cycle",
+                    vcd_window.start,
+                    vcd_window.end,
+                    last.saturating_sub(1)
+                );
+            }
+        }
+        let stalls = m.stall_cycles.unwrap_or_default();
+        let cycles = m.cycles.unwrap_or_default();
+        let frame_time_ns = m.frame_time_ns.unwrap_or_default();
+        let memory_line = match (desc.memory, m.page_hit_rate, m.avg_ns_per_voxel_access) {
+            (Memory::Ideal { latency }, ..) => format!("; ideal memory, {latency} cycles latency"),
+            (_, Some(hits), Some(ns)) => format!(
+                "; SDRAM {:.1} % row hits, {:.2} ns per voxel access",
+                100.0 * hits,
+                ns
+            ),
+            _ => "; SDRAM: no voxel read".to_string(),
+        };
+        println!(
         "{}: {} cycles = {:.3} ms/frame = {:.1} fps at {} MHz; {}, {} ray selection, ERT {}; \
          {} steps ({} samples of which {} leap samples, {} leaps), {} discarded after ERT{memory_line}; \
          stalls: queue empty {}, skip busy {}, memory {}, buffer full {}{}; {:.1} M cycles/s simulated",
@@ -184,36 +187,37 @@ pub fn run(args: SimArgs) -> Result<()> {
         volume_word_stalls(&stalls),
         report.sim_cycles_per_second.unwrap_or_default() / 1e6
     );
-    if let (Some(e), Some(ci)) = (&report.sampling, m.cycles_ci95) {
-        println!(
-            "sampled (rate {}): the timing figures above are estimates; cycles {} ± {:.0} \
+        if let (Some(e), Some(ci)) = (&report.sampling, m.cycles_ci95) {
+            println!(
+                "sampled (rate {}): the timing figures above are estimates; cycles {} ± {:.0} \
              (95 % interval, ± {:.2} %); {} of {} units of {} rays simulated in {} segments \
              ({} rays, {} cycles with warm-up)",
-            m.sample_rate.unwrap_or_default(),
-            cycles,
-            ci,
-            100.0 * ci / cycles.max(1) as f64,
-            e.measured_units,
-            e.units,
-            report.run.sample.map_or(0, |s| s.unit_rays),
-            e.segments,
-            e.simulated_rays,
-            e.simulated_cycles
-        );
-    }
-    if report.measurements.ray_range.is_some() {
-        println!("{}", super::ray_range_text(&report.measurements));
-    }
-    if report.measurements.blocking.is_some() {
-        println!("{}", super::blocking_text(&report.measurements));
-    }
-    if let Some(path) = &args.output {
-        report.frame.write_png(path)?;
-    }
-    if let Some(path) = &args.json {
-        vizsim::output::write_json(path, &report)?;
-    }
-    Ok(())
+                m.sample_rate.unwrap_or_default(),
+                cycles,
+                ci,
+                100.0 * ci / cycles.max(1) as f64,
+                e.measured_units,
+                e.units,
+                report.run.sample.map_or(0, |s| s.unit_rays),
+                e.segments,
+                e.simulated_rays,
+                e.simulated_cycles
+            );
+        }
+        if report.measurements.ray_range.is_some() {
+            println!("{}", super::ray_range_text(&report.measurements));
+        }
+        if report.measurements.blocking.is_some() {
+            println!("{}", super::blocking_text(&report.measurements));
+        }
+        if let Some(path) = &args.output {
+            report.frame.write_png(path)?;
+        }
+        if let Some(path) = &args.json {
+            vizsim::output::write_json(path, &report)?;
+        }
+        Ok(())
+    })
 }
 
 /// Stalls on words from volume memory, shown only for the structures that have them.
