@@ -10,34 +10,62 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
 
-/// The renames an `all_or_none` scope holds back, (temporary, target), in write order. Shared:
-/// a `PendingFile` created in the scope may be committed from another thread (a writer thread).
-type HeldBack = std::sync::Arc<std::sync::Mutex<Vec<(PathBuf, PathBuf)>>>;
+/// The renames an `all_or_none` scope holds back, (temporary, target), in write order; None
+/// once the scope has ended (a late commit then renames at once). Shared: a `PendingFile`
+/// created in the scope may be committed from another thread (a writer thread).
+type HeldBack = std::sync::Arc<std::sync::Mutex<Option<Vec<(PathBuf, PathBuf)>>>>;
 
 thread_local! {
-    /// The scope of `all_or_none` this thread is in.
+    /// The innermost `all_or_none` scope this thread is in.
     static HELD_BACK: RefCell<Option<HeldBack>> = const { RefCell::new(None) };
+}
+
+/// Ends a scope however `write` leaves it (a panic that unwinds included): restores the outer
+/// scope and removes the temporaries of renames still held back.
+struct ScopeGuard {
+    scope: HeldBack,
+    outer: Option<HeldBack>,
+}
+
+impl ScopeGuard {
+    /// The renames held back, and the scope closed to later commits.
+    fn close(&self) -> Vec<(PathBuf, PathBuf)> {
+        self.scope
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take()
+            .unwrap_or_default()
+    }
+}
+
+impl Drop for ScopeGuard {
+    fn drop(&mut self) {
+        HELD_BACK.with(|h| *h.borrow_mut() = self.outer.take());
+        for (tmp, _) in self.close() {
+            let _ = std::fs::remove_file(tmp);
+        }
+    }
 }
 
 /// Runs `write`, which writes a command's outputs, so that they appear together or not at all:
 /// the files written atomically (regular files, `write_atomically`, `PendingFile`) are renamed
-/// into place only when `write` succeeds; when it fails none is, and their temporaries are
-/// removed (a run whose JSON cannot be written leaves no PNG that looks like a result). Outputs
-/// written through (devices, FIFOs) are written as they come.
+/// into place only when `write` has succeeded; when it fails none is, and their temporaries are
+/// removed (a run whose JSON cannot be written leaves no PNG that looks like a result). The
+/// renames then follow one another: should one of them fail (the folder removed meanwhile),
+/// those before it are done. Outputs written through (devices, FIFOs) are written as they come.
+/// `write` should print nothing: a failed print ends the process without unwinding (`main`'s
+/// panic hook), which would leave the temporaries for the next write to the same path to remove.
 pub fn all_or_none<T, E: From<Error>>(
     write: impl FnOnce() -> std::result::Result<T, E>,
 ) -> std::result::Result<T, E> {
-    let scope = HeldBack::default();
-    HELD_BACK.with(|h| *h.borrow_mut() = Some(scope.clone()));
+    let scope = HeldBack::new(std::sync::Mutex::new(Some(Vec::new())));
+    let outer = HELD_BACK.with(|h| h.borrow_mut().replace(scope.clone()));
+    let guard = ScopeGuard { scope, outer };
     let result = write();
-    HELD_BACK.with(|h| *h.borrow_mut() = None);
-    let held = std::mem::take(&mut *scope.lock().unwrap_or_else(|e| e.into_inner()));
     if result.is_err() {
-        for (tmp, _) in &held {
-            let _ = std::fs::remove_file(tmp);
-        }
-        return result;
+        return result; // the guard removes the temporaries
     }
+    let held = guard.close();
     for (i, (tmp, path)) in held.iter().enumerate() {
         if let Err(e) = std::fs::rename(tmp, path) {
             for (tmp, _) in &held[i..] {
@@ -54,17 +82,15 @@ fn current_scope() -> Option<HeldBack> {
     HELD_BACK.with(|h| h.borrow().clone())
 }
 
-/// Renames a finished temporary to its target, or holds the rename back for `scope`.
+/// Renames a finished temporary to its target, or holds the rename back while `scope` lasts.
 fn move_into_place(scope: Option<&HeldBack>, tmp: &Path, path: &Path) -> std::io::Result<()> {
-    match scope {
-        Some(held) => {
-            held.lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .push((tmp.to_path_buf(), path.to_path_buf()));
-            Ok(())
+    if let Some(scope) = scope {
+        if let Some(held) = scope.lock().unwrap_or_else(|e| e.into_inner()).as_mut() {
+            held.push((tmp.to_path_buf(), path.to_path_buf()));
+            return Ok(());
         }
-        None => std::fs::rename(tmp, path),
     }
+    std::fs::rename(tmp, path)
 }
 
 /// The temporary name a file is written under before it is renamed to `path`: hidden, in the

@@ -16,7 +16,7 @@ mod sweep;
 mod update;
 mod verify_skip;
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -193,16 +193,26 @@ impl FrameArgs {
     /// Files the frame may read (the dataset, the transfer function, the camera path, the
     /// hardware configuration), for `output::check_distinct`: names that are no file are left
     /// to it.
-    pub fn inputs<'a>(&'a self, hardware: &'a HardwareArgs) -> Vec<&'a Path> {
+    /// `run` is the run they describe (its geometry's depth file).
+    pub fn inputs(&self, hardware: &HardwareArgs, run: &RunDescription) -> Vec<PathBuf> {
         let camera_path = self
             .view
             .strip_prefix("path:")
             .and_then(|rest| rest.rsplit_once(':'))
-            .map(|(file, _)| Path::new(file));
-        [Path::new(&self.dataset), Path::new(&self.tf)]
+            .map(|(file, _)| PathBuf::from(file));
+        // A dataset given by name is a file in the data folder.
+        let dataset_file = self
+            .data
+            .dir()
+            .ok()
+            .flatten()
+            .and_then(|dir| dataset::file_of(&self.dataset, &dir));
+        [PathBuf::from(&self.dataset), PathBuf::from(&self.tf)]
             .into_iter()
+            .chain(dataset_file)
             .chain(camera_path)
-            .chain(hardware.config.as_deref())
+            .chain(hardware.config.clone())
+            .chain(Some(PathBuf::from(&run.hardware.geometry.file)))
             .collect()
     }
 

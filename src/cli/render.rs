@@ -58,7 +58,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
     .into_iter()
     .filter_map(|(option, path)| Some((option, path?.as_path())))
     .collect();
-    vizsim::output::check_distinct(&args.frame.inputs(&args.hardware), &outputs)?;
+    let inputs = args.frame.inputs(&args.hardware, &desc);
+    let inputs: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
+    vizsim::output::check_distinct(&inputs, &outputs)?;
     for path in [Some(&args.output), args.rays.as_ref(), args.json.as_ref()]
         .into_iter()
         .flatten()
@@ -67,7 +69,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
     }
     println!("{}", args.hardware.resolved_line(&desc.hardware));
     // The outputs appear together or not at all (a JSON that cannot be written leaves no PNG).
-    vizsim::output::all_or_none(|| -> Result<()> {
+    // The outputs appear together or not at all; what the run says is printed after them
+    // (a failed print must not leave the outputs' temporaries behind).
+    use std::fmt::Write as _;
+    let said = vizsim::output::all_or_none(|| -> Result<String> {
+        let mut said = String::new();
         let report = run::run(&desc, args.frame.data.dir()?.as_deref(), Probes::default())?;
         report.frame.write_png(&args.output)?;
         if let Some(path) = &args.rays {
@@ -75,7 +81,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
         let stats = &report.stats;
         let m = &report.measurements;
-        println!(
+        writeln!(
+            said,
         "{} ({} model, {}): {} rays, {} hit, {} samples ({} leap samples), {} leaps, {} terminated early{}, {:.3} s ({:.1} M samples/s) -> {}",
         report.volume,
         model.name(),
@@ -92,16 +99,18 @@ pub fn run(args: RenderArgs) -> Result<()> {
         report.wall_seconds,
         report.samples_per_second / 1e6,
         args.output.display()
-    );
+    )?;
         if report.measurements.ray_range.is_some() {
-            println!("{}", super::ray_range_text(&report.measurements));
+            writeln!(said, "{}", super::ray_range_text(&report.measurements))?;
         }
         if report.measurements.blocking.is_some() {
-            println!("{}", super::blocking_text(&report.measurements));
+            writeln!(said, "{}", super::blocking_text(&report.measurements))?;
         }
         if let Some(json) = &args.json {
             vizsim::output::write_json(json, &report)?;
         }
-        Ok(())
-    })
+        Ok(said)
+    })?;
+    print!("{said}");
+    Ok(())
 }

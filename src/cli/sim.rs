@@ -88,7 +88,9 @@ pub fn run(args: SimArgs) -> Result<()> {
     .into_iter()
     .filter_map(|(option, path)| Some((option, path.as_deref()?)))
     .collect();
-    vizsim::output::check_distinct(&args.frame.inputs(&args.hardware), &outputs)?;
+    let inputs = args.frame.inputs(&args.hardware, &desc);
+    let inputs: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
+    vizsim::output::check_distinct(&inputs, &outputs)?;
     for path in [&args.output, &args.json].into_iter().flatten() {
         vizsim::output::check_writable(path)?;
     }
@@ -102,7 +104,11 @@ pub fn run(args: SimArgs) -> Result<()> {
     );
     // The outputs appear together or not at all (a JSON that cannot be written leaves no PNG,
     // trace or waveform).
-    vizsim::output::all_or_none(|| -> Result<()> {
+    // The outputs appear together or not at all; what the run says is printed after them
+    // (a failed print must not leave the outputs' temporaries behind).
+    use std::fmt::Write as _;
+    let (said, warned) = vizsim::output::all_or_none(|| -> Result<(String, String)> {
+        let (mut said, mut warned) = (String::new(), String::new());
         let mut command_trace = match &args.command_trace {
             Some(path) => {
                 let window = args
@@ -129,26 +135,28 @@ pub fn run(args: SimArgs) -> Result<()> {
         let report = run::run(&desc, args.frame.data.dir()?.as_deref(), probes)?;
         if let Some(t) = command_trace {
             let commands = t.finish()?;
-            println!(
+            writeln!(
+                said,
                 "{commands} SDRAM commands -> {}",
                 args.command_trace
                     .as_ref()
                     .map(|p| p.display().to_string())
                     .unwrap_or_default()
-            );
+            )?;
         }
         let m = &report.measurements;
         if let Some(w) = waveform {
             w.finish()?;
             let last = m.cycles.unwrap_or_default();
             if vcd_window.start >= last {
-                eprintln!(
+                writeln!(
+                    warned,
                     "warning: --vcd-cycles {}..{} begins after the frame's last cycle ({}): the \
                  waveform holds no cycle",
                     vcd_window.start,
                     vcd_window.end,
                     last.saturating_sub(1)
-                );
+                )?;
             }
         }
         let stalls = m.stall_cycles.unwrap_or_default();
@@ -163,7 +171,8 @@ pub fn run(args: SimArgs) -> Result<()> {
             ),
             _ => "; SDRAM: no voxel read".to_string(),
         };
-        println!(
+        writeln!(
+            said,
         "{}: {} cycles = {:.3} ms/frame = {:.1} fps at {} MHz; {}, {} ray selection, ERT {}; \
          {} steps ({} samples of which {} leap samples, {} leaps), {} discarded after ERT{memory_line}; \
          stalls: queue empty {}, skip busy {}, memory {}, buffer full {}{}; {:.1} M cycles/s simulated",
@@ -186,9 +195,10 @@ pub fn run(args: SimArgs) -> Result<()> {
         stalls.compositing_buffer_full,
         volume_word_stalls(&stalls),
         report.sim_cycles_per_second.unwrap_or_default() / 1e6
-    );
+    )?;
         if let (Some(e), Some(ci)) = (&report.sampling, m.cycles_ci95) {
-            println!(
+            writeln!(
+                said,
                 "sampled (rate {}): the timing figures above are estimates; cycles {} ± {:.0} \
              (95 % interval, ± {:.2} %); {} of {} units of {} rays simulated in {} segments \
              ({} rays, {} cycles with warm-up)",
@@ -202,13 +212,13 @@ pub fn run(args: SimArgs) -> Result<()> {
                 e.segments,
                 e.simulated_rays,
                 e.simulated_cycles
-            );
+            )?;
         }
         if report.measurements.ray_range.is_some() {
-            println!("{}", super::ray_range_text(&report.measurements));
+            writeln!(said, "{}", super::ray_range_text(&report.measurements))?;
         }
         if report.measurements.blocking.is_some() {
-            println!("{}", super::blocking_text(&report.measurements));
+            writeln!(said, "{}", super::blocking_text(&report.measurements))?;
         }
         if let Some(path) = &args.output {
             report.frame.write_png(path)?;
@@ -216,8 +226,11 @@ pub fn run(args: SimArgs) -> Result<()> {
         if let Some(path) = &args.json {
             vizsim::output::write_json(path, &report)?;
         }
-        Ok(())
-    })
+        Ok((said, warned))
+    })?;
+    print!("{said}");
+    eprint!("{warned}");
+    Ok(())
 }
 
 /// Stalls on words from volume memory, shown only for the structures that have them.

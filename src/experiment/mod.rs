@@ -435,7 +435,19 @@ fn learn_finished(
     if finished.is_empty() {
         return Ok(());
     }
-    let keys: std::collections::HashSet<&str> = finished.iter().map(|r| r.key.as_str()).collect();
+    // Only results this model measured: a line of an older vizsim (a folder resumed after an
+    // upgrade) keeps its own run but spreads to no twin.
+    let measured_here: std::collections::HashSet<String> =
+        store::read_timing(&out.join(store::TIMING))?
+            .into_iter()
+            .filter(|(time, _)| time.get("model").and_then(Value::as_str) == Some(store::MODEL))
+            .filter_map(|(time, _)| Some(time.get("key")?.as_str()?.to_string()))
+            .collect();
+    let keys: std::collections::HashSet<&str> = finished
+        .iter()
+        .map(|r| r.key.as_str())
+        .filter(|key| measured_here.contains(*key))
+        .collect();
     let lines: BTreeMap<String, Value> = store::read_lines(&out.join(store::RESULTS))?
         .into_iter()
         .filter_map(|(line, _)| {

@@ -20,6 +20,10 @@ use crate::error::{Error, Result};
 pub const RESULTS: &str = "results.jsonl";
 pub const TIMING: &str = "timing.jsonl";
 pub const RESOLVED: &str = "experiment.resolved.json";
+/// A hash of the sources of the model that wrote a result (build.rs), written beside its wall
+/// time: a resumed sweep reuses the timings of finished runs only when the same model measured
+/// them (`experiment::sweep`).
+pub const MODEL: &str = env!("VIZSIM_MODEL_HASH");
 /// Held (advisory lock) while a sweep writes into the folder.
 const LOCK: &str = ".sweep.lock";
 
@@ -299,7 +303,7 @@ impl ResultStore {
             .map_err(|e| Error::io(&path, e))?;
         let timing = format!(
             "{}\n",
-            serde_json::json!({ "key": key, "wall_seconds": wall_seconds })
+            serde_json::json!({ "key": key, "wall_seconds": wall_seconds, "model": MODEL })
         );
         self.timing
             .write_all(timing.as_bytes())

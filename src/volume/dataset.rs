@@ -174,6 +174,20 @@ pub fn load(spec: &str, data_dir: Option<&Path>) -> Result<Volume> {
     })
 }
 
+/// The file a dataset name (or alias) picks in `data_dir`, if any (not phantoms or paths).
+pub fn file_of(spec: &str, data_dir: &Path) -> Option<PathBuf> {
+    let name = ALIASES
+        .iter()
+        .find(|(alias, _)| *alias == spec)
+        .map(|(_, name)| *name)
+        .unwrap_or(spec);
+    scan(data_dir)
+        .ok()?
+        .into_iter()
+        .find(|e| e.name == name)
+        .map(|e| e.path)
+}
+
 /// Loads a volume file by its extension.
 pub fn load_file(path: &Path) -> Result<Volume> {
     let name = path.to_string_lossy();
