@@ -61,10 +61,8 @@ pub fn all_or_none<T, E: From<Error>>(
     let scope = HeldBack::new(std::sync::Mutex::new(Some(Vec::new())));
     let outer = HELD_BACK.with(|h| h.borrow_mut().replace(scope.clone()));
     let guard = ScopeGuard { scope, outer };
-    let result = write();
-    if result.is_err() {
-        return result; // the guard removes the temporaries
-    }
+    // On an error the guard removes the temporaries.
+    let value = write()?;
     let held = guard.close();
     for (i, (tmp, path)) in held.iter().enumerate() {
         if let Err(e) = std::fs::rename(tmp, path) {
@@ -74,7 +72,7 @@ pub fn all_or_none<T, E: From<Error>>(
             return Err(Error::io(path, e).into());
         }
     }
-    result
+    Ok(value)
 }
 
 /// The `all_or_none` scope this thread is in, if any.
