@@ -14,6 +14,17 @@ fn vizsim(args: &[&str]) -> Output {
         .expect("run vizsim")
 }
 
+/// Runs a command that must succeed; its standard error is shown when it does not.
+fn succeeds(args: &[&str]) -> Output {
+    let out = vizsim(args);
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
 fn scratch(name: &str) -> PathBuf {
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
         .join(format!("vizsim-cli-{}-{name}", std::process::id()));
@@ -40,7 +51,7 @@ fn render_writes_a_png_and_json() {
     let dir = scratch("ok");
     let png = dir.join("out.png");
     let json = dir.join("stats.json");
-    let out = vizsim(&[
+    succeeds(&[
         "render",
         "--dataset",
         "phantom:sphere:32",
@@ -53,11 +64,6 @@ fn render_writes_a_png_and_json() {
         "--json",
         json.to_str().unwrap(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let img = image::open(&png).unwrap();
     assert_eq!((img.width(), img.height()), (40, 30));
     let stats: serde_json::Value =
@@ -231,12 +237,7 @@ fn info_reports_the_published_occupancy() {
         return;
     };
     for (name, published) in [("fuel", 5.24), ("neghip", 46.38), ("aneurism", 1.01)] {
-        let out = vizsim(&["info", name, "--json", "--data-dir", dir.to_str().unwrap()]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        let out = succeeds(&["info", name, "--json", "--data-dir", dir.to_str().unwrap()]);
         let info: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
         let pct = info["occupied_percent"].as_f64().unwrap();
         assert!(
@@ -282,7 +283,7 @@ fn verify_skip_reports_no_violations_when_rounding_down_and_some_when_rounding_t
 #[test]
 fn precision_sweep_writes_tables_and_plots_and_skip_widths_never_change_the_image() {
     let dir = scratch("precision");
-    let out = vizsim(&[
+    succeeds(&[
         "precision",
         "--dataset",
         "phantom:sphere:32",
@@ -291,11 +292,6 @@ fn precision_sweep_writes_tables_and_plots_and_skip_widths_never_change_the_imag
         "--out",
         dir.to_str().unwrap(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     for suffix in [
         ".csv",
         ".md",
@@ -331,12 +327,7 @@ fn precision_sweep_writes_tables_and_plots_and_skip_widths_never_change_the_imag
 
 #[test]
 fn occupancy_reports_the_published_storage_and_sram_fit() {
-    let out = vizsim(&["occupancy", "phantom:jet:64", "--json"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = succeeds(&["occupancy", "phantom:jet:64", "--json"]);
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let sizes = report["sizes"].as_array().unwrap();
     // Published storage for 64^3: 32 Kbit at 2^3 ... 8 bit at 32^3.
@@ -374,7 +365,7 @@ fn sim_writes_the_statistics_architects_need() {
     let dir = scratch("sim");
     let json = dir.join("sim.json");
     let png = dir.join("sim.png");
-    let out = vizsim(&[
+    succeeds(&[
         "sim",
         "--dataset",
         "phantom:metaballs:32",
@@ -388,11 +379,6 @@ fn sim_writes_the_statistics_architects_need() {
         "--json",
         json.to_str().unwrap(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let cycles = s["cycles"].as_u64().unwrap();
@@ -554,7 +540,7 @@ fn outputs_that_would_overwrite_an_input_or_each_other_are_refused() {
         );
     }
     // Devices are no files: /dev/null may take several outputs.
-    let ok = vizsim(&[
+    succeeds(&[
         "compare",
         a_,
         b_,
@@ -563,11 +549,6 @@ fn outputs_that_would_overwrite_an_input_or_each_other_are_refused() {
         "--diff",
         "/dev/null",
     ]);
-    assert!(
-        ok.status.success(),
-        "{}",
-        String::from_utf8_lossy(&ok.stderr)
-    );
 }
 
 /// The fixed-point model's per-ray CSV says where each ray enters and leaves the volume, as the
@@ -580,7 +561,7 @@ fn the_fixed_models_rays_enter_and_leave_where_the_float_references_do() {
             dir.join(format!("{model}.png")),
             dir.join(format!("{model}.csv")),
         );
-        let out = vizsim(&[
+        succeeds(&[
             "render",
             "--dataset",
             "phantom:sphere:32",
@@ -595,11 +576,6 @@ fn the_fixed_models_rays_enter_and_leave_where_the_float_references_do() {
             "--rays",
             rays.to_str().unwrap(),
         ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
         std::fs::read_to_string(rays).unwrap()
     };
     let column = |csv: &str, name: &str| -> Vec<String> {
@@ -698,7 +674,7 @@ fn a_frame_that_reads_nothing_reports_no_rates_per_read() {
     )
     .unwrap();
     let json = dir.join("out.json");
-    let out = vizsim(&[
+    let out = succeeds(&[
         "sim",
         "--dataset",
         "phantom:sphere:32",
@@ -711,11 +687,6 @@ fn a_frame_that_reads_nothing_reports_no_rates_per_read() {
         "--json",
         json.to_str().unwrap(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     assert!(String::from_utf8_lossy(&out.stdout).contains("no voxel read"));
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
@@ -830,17 +801,12 @@ fn messages_name_the_option_at_fault() {
          models = [\"step\"]\n[frames]\norbit = 1\nsize = \"8x8\"\n",
     )
     .unwrap();
-    let swept = vizsim(&[
+    succeeds(&[
         "sweep",
         exp.to_str().unwrap(),
         "--out",
         sweep.to_str().unwrap(),
     ]);
-    assert!(
-        swept.status.success(),
-        "{}",
-        String::from_utf8_lossy(&swept.stderr)
-    );
     for command in ["plot", "table"] {
         let out = vizsim(&[
             command,
@@ -905,12 +871,7 @@ fn a_run_that_fails_to_write_one_output_leaves_none() {
         let json = dir.join("ok.json");
         let mut working = args.clone();
         working.extend(["--json", json.to_str().unwrap()]);
-        let out = vizsim(&working);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        succeeds(&working);
         assert!(png.exists() && json.exists());
         for file in std::fs::read_dir(&dir).unwrap().flatten() {
             std::fs::remove_file(file.path()).unwrap();
