@@ -103,9 +103,8 @@ pub fn run(args: SimArgs) -> Result<()> {
         "--command-trace needs --memory sdram (the ideal memory issues no commands)"
     );
     // The outputs appear together or not at all (a JSON that cannot be written leaves no PNG,
-    // trace or waveform).
-    // The outputs appear together or not at all; what the run says is printed after them
-    // (a failed print must not leave the outputs' temporaries behind).
+    // trace or waveform); what the run says is printed after them (a failed print must not
+    // leave the outputs' temporaries behind).
     use std::fmt::Write as _;
     let (said, warned) = vizsim::output::all_or_none(|| -> Result<(String, String)> {
         let (mut said, mut warned) = (String::new(), String::new());
