@@ -68,7 +68,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
         vizsim::output::check_writable(path)?;
     }
     println!("{}", args.hardware.resolved_line(&desc.hardware));
-    // The outputs appear together or not at all (a JSON that cannot be written leaves no PNG).
     // The outputs appear together or not at all; what the run says is printed after them
     // (a failed print must not leave the outputs' temporaries behind).
     use std::fmt::Write as _;
