@@ -35,11 +35,18 @@ pub struct RayQueue {
     slots: Vec<Option<RaySlot>>,
     /// Per slot, its issue key: the ray's position index k when it may issue (present, not
     /// busy, not finished), else `NOT_READY`. Selection scans this compact array instead of
-    /// the slots (a slot is some 300 bytes).
+    /// the slots (a slot is some 1,300 bytes).
     keys: Vec<u64>,
     /// Slots handed out by `slot_mut` since the last selection: their keys are recomputed
     /// before the next one.
     stale: Vec<usize>,
+    /// Per slot, a count of the times it was handed out, filled or emptied: a step computed
+    /// for the slot still holds while the count is unchanged (`version`).
+    versions: Vec<u32>,
+    /// The last selection, while no key and not the round-robin pointer changed since: a cycle
+    /// in which nothing issued (the memory or the compositing buffer full) and no key changed
+    /// selects the same slot again without a scan.
+    last_choice: Option<Option<usize>>,
     occupied: usize,
     selection: RaySelection,
     next_round_robin: usize,
@@ -61,6 +68,8 @@ impl RayQueue {
             slots: vec![None; rays],
             keys: vec![NOT_READY; rays],
             stale: Vec::new(),
+            versions: vec![0; rays],
+            last_choice: None,
             occupied: 0,
             selection,
             next_round_robin: 0,
@@ -89,7 +98,22 @@ impl RayQueue {
     /// The slot to change (its issue key is recomputed before the next selection).
     pub fn slot_mut(&mut self, index: usize) -> Option<&mut RaySlot> {
         self.stale.push(index);
+        self.versions[index] = self.versions[index].wrapping_add(1);
         self.slots[index].as_mut()
+    }
+
+    /// Changes whenever slot `index` may have changed (handed out, filled or emptied).
+    pub fn version(&self, index: usize) -> u32 {
+        self.versions[index]
+    }
+
+    /// Sets slot `index`'s issue key; a different key voids the last selection.
+    #[inline]
+    fn set_key(&mut self, index: usize, key: u64) {
+        if self.keys[index] != key {
+            self.keys[index] = key;
+            self.last_choice = None;
+        }
     }
 
     pub fn slots(&self) -> impl Iterator<Item = &RaySlot> {
@@ -100,14 +124,16 @@ impl RayQueue {
     pub fn admit(&mut self, index: usize, slot: RaySlot) {
         debug_assert!(self.slots[index].is_none());
         self.slots[index] = Some(slot);
-        self.keys[index] = key_of(&self.slots[index]);
+        self.versions[index] = self.versions[index].wrapping_add(1);
+        self.set_key(index, key_of(&self.slots[index]));
         self.occupied += 1;
     }
 
     /// Takes a ray out of its slot.
     pub fn remove(&mut self, index: usize) -> Option<RaySlot> {
         let slot = self.slots[index].take();
-        self.keys[index] = NOT_READY;
+        self.versions[index] = self.versions[index].wrapping_add(1);
+        self.set_key(index, NOT_READY);
         self.occupied -= slot.is_some() as usize;
         slot
     }
@@ -115,9 +141,19 @@ impl RayQueue {
     /// The slot to issue from this cycle among the ready ones (present, not busy, not
     /// finished), by the configured policy. Round-robin advances only when a slot issues.
     pub fn select(&mut self) -> Option<usize> {
-        for i in self.stale.drain(..) {
-            self.keys[i] = key_of(&self.slots[i]);
+        while let Some(i) = self.stale.pop() {
+            self.set_key(i, key_of(&self.slots[i]));
         }
+        if let Some(choice) = self.last_choice {
+            return choice;
+        }
+        let choice = self.scan();
+        self.last_choice = Some(choice);
+        choice
+    }
+
+    /// The selection by the configured policy, from the keys.
+    fn scan(&self) -> Option<usize> {
         let n = self.keys.len();
         let start = self.next_round_robin;
         let keys = &self.keys;
@@ -150,6 +186,7 @@ impl RayQueue {
 
     pub fn issued_from(&mut self, slot: usize) {
         self.next_round_robin = (slot + 1) % self.slots.len();
+        self.last_choice = None;
     }
 
     /// Marks the ray terminated if it still holds a slot (the feedback may arrive after the
@@ -163,7 +200,8 @@ impl RayQueue {
         if let Some(s) = self.slots[index].as_mut() {
             s.terminated = true;
         }
-        self.keys[index] = NOT_READY;
+        self.versions[index] = self.versions[index].wrapping_add(1);
+        self.set_key(index, NOT_READY);
         Some(index)
     }
 }
@@ -197,6 +235,27 @@ mod tests {
             queue.next_round_robin = pointer % keys.len();
             let expected = reference(&queue.keys, queue.next_round_robin);
             proptest::prop_assert_eq!(queue.select(), expected);
+        }
+
+        /// Keys changing one at a time (or not at all) and slots issuing (the pointer moves),
+        /// with a selection after each event: the selection kept from one cycle to the next
+        /// is always the one the definition picks from the keys as they are.
+        #[test]
+        fn a_kept_selection_is_the_definitions(
+            slots in 1usize..20,
+            events in proptest::collection::vec(
+                (0usize..20, proptest::option::of(0u64..5), proptest::bool::ANY), 1..200),
+        ) {
+            let mut queue = RayQueue::new(slots, RaySelection::LaggingFirst);
+            for (slot, key, issues) in events {
+                if issues {
+                    queue.issued_from(slot % slots);
+                } else {
+                    queue.set_key(slot % slots, key.unwrap_or(NOT_READY));
+                }
+                let expected = reference(&queue.keys, queue.next_round_robin);
+                proptest::prop_assert_eq!(queue.select(), expected);
+            }
         }
     }
 }
