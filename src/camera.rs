@@ -97,9 +97,10 @@ impl View {
         };
         let (file, frame) = rest.rsplit_once(':').ok_or_else(|| bad("no `:K/N`"))?;
         let (k, n) = frame.split_once('/').ok_or_else(|| bad("no `/` in K/N"))?;
-        let k: u32 = k.parse().map_err(|_| bad("K is not a whole number"))?;
-        let n: u32 = n.parse().map_err(|_| bad("N is not a whole number"))?;
-        if n == 0 || k >= n || n > crate::path::MAX_PATH_FRAMES {
+        // Parsed wide, so that a whole number too large is called out of range, not malformed.
+        let k: u64 = k.parse().map_err(|_| bad("K is not a whole number"))?;
+        let n: u64 = n.parse().map_err(|_| bad("N is not a whole number"))?;
+        if n == 0 || k >= n || n > crate::path::MAX_PATH_FRAMES as u64 {
             return Err(bad(&format!(
                 "frame {k} of {n} out of range (N at most {})",
                 crate::path::MAX_PATH_FRAMES
@@ -108,6 +109,7 @@ impl View {
         if file.is_empty() {
             return Err(bad("empty file name"));
         }
+        let (k, n) = (k as u32, n as u32);
         let path = crate::path::CameraPath::load(std::path::Path::new(file))?;
         path.check_frames(n)?;
         Ok(View::Path {

@@ -36,6 +36,11 @@ use crate::error::{Error, Result};
 /// Largest accepted frame count N of a path view.
 pub const MAX_PATH_FRAMES: u32 = 1_000_000;
 
+/// Largest coordinate magnitude of a key's eye, look-at and up, in the path's units. Poses are
+/// computed in f32 (a 24-bit mantissa): a million units from the origin a sixteenth of a unit
+/// is still resolved; much farther, eye and look-at merge.
+pub const MAX_COORDINATE: f32 = 1e6;
+
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Units {
@@ -149,6 +154,13 @@ impl CameraPath {
             for (field, v) in [("eye", k.eye), ("look_at", k.look_at), ("up", k.up)] {
                 if v.iter().any(|c| !c.is_finite()) {
                     return Err(bad(format!("`key[{i}].{field}` = {v:?}: must be finite")));
+                }
+                // Poses are computed in f32: far beyond the volume, eye and look-at merge.
+                if v.iter().any(|c| c.abs() > MAX_COORDINATE) {
+                    return Err(bad(format!(
+                        "`key[{i}].{field}` = {v:?}: coordinates allowed within \
+                         ±{MAX_COORDINATE:e} (in the path's units)"
+                    )));
                 }
             }
             if Vec3::from(k.up).length() == 0.0 {

@@ -358,6 +358,10 @@ fn bad_paths_give_clear_errors() {
     let same = key("[1.0, 1.0, 1.0]", "[1.0, 1.0, 1.0]", "[0.0, 0.0, 1.0]");
     let e = err("same.toml", &format!("{good}{same}"), "0/2");
     assert!(e.contains("key[1]") && e.contains("coincide"), "{e}");
+    // An eye so far out that f32 poses would merge it with its look-at.
+    let far = key("[1e30, 0.0, 0.0]", "[0.0, 0.0, 0.0]", "[0.0, 0.0, 1.0]");
+    let e = err("far.toml", &format!("{good}{far}"), "0/2");
+    assert!(e.contains("key[1].eye") && e.contains("within"), "{e}");
     // Malformed TOML, an unknown field, a wrong type, a bad setting.
     let e = err("malformed.toml", "[[key]\neye = ", "0/2");
     assert!(e.contains("camera path"), "{e}");
@@ -399,6 +403,14 @@ fn bad_paths_give_clear_errors() {
             .to_string();
         assert!(e.contains("path:"), "{spec}: {e}");
     }
+    // A whole number of frames too large is out of range, not malformed.
+    let e = View::parse(&format!("path:{file}:0/100000000000000"))
+        .expect_err("too many frames")
+        .to_string();
+    assert!(
+        e.contains("out of range") && !e.contains("not a whole"),
+        "{e}"
+    );
     assert!(View::parse(&format!("path:{file}:1/2")).is_ok());
     let missing = scratch("missing.toml").display().to_string();
     let e = View::parse(&format!("path:{missing}:0/2"))

@@ -107,7 +107,7 @@ pub fn run(args: OccupancyArgs) -> Result<()> {
         return Ok(());
     }
     println!(
-        "{}: occupancy maps, transfer function {} (class), SRAM {sram} bit",
+        "{}: occupancy maps '0' and class (the class map by transfer function {}), SRAM {sram} bit",
         volume.name, tf.name
     );
     println!("| sub-cube | map bits | fits SRAM | skippable '0' | skippable class | empty groups '0' | empty groups class |");
