@@ -36,6 +36,15 @@ pub enum Structure {
 }
 
 impl Structure {
+    /// The name `--structures` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            Structure::Map => "map",
+            Structure::Distance => "distance",
+            Structure::LeapValues => "leap-values",
+        }
+    }
+
     pub fn parse(text: &str) -> std::result::Result<Structure, String> {
         match text {
             "map" => Ok(Structure::Map),
@@ -47,6 +56,26 @@ impl Structure {
         }
     }
 }
+
+/// Refuses `--set` overrides of the fields the candidates set themselves (ERT, the map, its
+/// kind, the structures): the ranking would override them without a word.
+pub fn check_overrides(overrides: &[String]) -> Result<()> {
+    for o in overrides {
+        let field = o.split_once('=').map_or(o.as_str(), |(f, _)| f).trim();
+        if MODE_FIELDS.contains(&field) {
+            return Err(Error::Invalid(format!(
+                "--set {o}: the advisor ranks configurations that set `{field}` themselves \
+                 (ERT, maps, hierarchy, distance volumes, leap values; the map kind follows --tf)"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The file name of the table `validate_table` reads: the cycle model's mean frame rates, as
+/// `vizsim table --model cycle --metric fps` writes them. The cells carry no unit, so a table of
+/// another metric or model would be read as frame rates without a word; its name tells.
+pub const FPS_TABLE: &str = "cycle-fps.csv";
 
 /// What the advice is computed on.
 #[derive(Clone, Debug, Serialize)]
@@ -736,16 +765,16 @@ pub fn validate(
 ) -> Result<Validation> {
     use std::collections::BTreeMap;
     if !dir.is_dir() {
-        return Err(Error::Invalid(format!(
-            "advise --validate {}: no such folder",
-            dir.display()
-        )));
+        return Err(Error::Invalid(if dir.exists() {
+            format!("not a folder: a sweep's results folder or a `{FPS_TABLE}` table")
+        } else {
+            "no such folder".to_string()
+        }));
     }
     let results = dir.join(crate::experiment::store::RESULTS);
     if !results.is_file() {
         return Err(Error::Invalid(format!(
-            "advise --validate {}: no {} (not a sweep's results folder)",
-            dir.display(),
+            "no {} (not a sweep's results folder)",
             crate::experiment::store::RESULTS
         )));
     }
@@ -839,11 +868,11 @@ pub fn validate(
     }
     pairs.retain(|_, p| !p.views.is_empty());
     if pairs.is_empty() && incomplete.is_empty() {
-        return Err(Error::Invalid(format!(
-            "advise --validate {}: no cycle-model results of modes the advisor ranks (ert, \
-             ert+leapN[+hier], ert+distanceN, ert+leapvalues)",
-            dir.display()
-        )));
+        return Err(Error::Invalid(
+            "no cycle-model results of modes the advisor ranks (ert, ert+leapN[+hier], \
+             ert+distanceN, ert+leapvalues)"
+                .to_string(),
+        ));
     }
     let mut rows = Vec::new();
     for pair in pairs.values() {
@@ -873,6 +902,14 @@ pub fn validate(
         }
         // The advice is restricted to the structures asked for; the truth ranks them all.
         let allowed = options.structures.clone().unwrap_or(structures.clone());
+        if let Some(missing) = allowed.iter().find(|s| !structures.contains(s)) {
+            return Err(Error::Invalid(format!(
+                "--structures {}: no run with it for {} with {}",
+                missing.name(),
+                pair.dataset,
+                pair.tf
+            )));
+        }
         let mut advice = advise(
             &base,
             &volume,
@@ -882,13 +919,14 @@ pub fn validate(
                 structures,
             },
         )?;
+        // ERT alone is the baseline every structure is ranked against: always allowed.
         for c in &mut advice.ranking {
-            let structure = match c.structure {
-                CandidateStructure::Distance => Structure::Distance,
-                CandidateStructure::LeapValues => Structure::LeapValues,
-                CandidateStructure::Map | CandidateStructure::None => Structure::Map,
+            c.allowed = match c.structure {
+                CandidateStructure::None => true,
+                CandidateStructure::Map => allowed.contains(&Structure::Map),
+                CandidateStructure::Distance => allowed.contains(&Structure::Distance),
+                CandidateStructure::LeapValues => allowed.contains(&Structure::LeapValues),
             };
-            c.allowed = allowed.contains(&structure);
         }
         let mean = |m: &str| {
             pair.modes
@@ -902,10 +940,8 @@ pub fn validate(
             .find(|c| c.fits && c.allowed && pair.modes.contains_key(&c.mode))
             .ok_or_else(|| {
                 Error::Invalid(format!(
-                    "advise --validate {}: {} with {}: no configuration that fits the SRAM",
-                    dir.display(),
-                    pair.dataset,
-                    pair.tf
+                    "{} with {}: no configuration that fits the SRAM",
+                    pair.dataset, pair.tf
                 ))
             })?;
         let (best, best_fps) = pair
@@ -1167,6 +1203,14 @@ pub fn validate_table(
     max_rays: u64,
     mut progress: impl FnMut(&ValidationRow),
 ) -> Result<Validation> {
+    if path.file_name().and_then(|n| n.to_str()) != Some(FPS_TABLE) {
+        return Err(Error::Invalid(format!(
+            "--validate {}: expected the cycle model's frame-rate table, `{FPS_TABLE}` as `vizsim table \
+             --model cycle --metric fps` writes it (another table's cells would be read as frame \
+             rates)",
+            path.display()
+        )));
+    }
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let bad = |line: usize, message: String| Error::format(path, format!("line {line}: {message}"));
     let mut lines = text.lines();

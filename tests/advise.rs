@@ -146,10 +146,8 @@ fn bad_input_gives_a_clear_error() {
     )
     .unwrap_err()
     .to_string();
-    assert!(
-        err.contains("/nonexistent/advise-results") && err.contains("no such folder"),
-        "{err}"
-    );
+    // The command line names the folder (below); the library says what is wrong with it.
+    assert!(err.contains("no such folder"), "{err}");
 
     // The command line names the option.
     let exe = env!("CARGO_BIN_EXE_vizsim");
@@ -191,7 +189,8 @@ fn bad_input_gives_a_clear_error() {
     assert!(!out.status.success());
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
-        stderr.contains("--validate") && stderr.contains("no such folder"),
+        stderr.contains("--validate /nonexistent/advise-results")
+            && stderr.contains("no such folder"),
         "{stderr}"
     );
 
@@ -298,7 +297,96 @@ fn a_table_is_validated_against_its_own_frame_rates() {
         err.contains("cycle-fps.csv") && err.contains("line 2") && err.contains("grey"),
         "{err}"
     );
+    // A table of another metric has the same layout: its name tells, and it is refused.
+    let cycles = dir.join("cycle-cycles.csv");
+    std::fs::write(
+        &cycles,
+        "dataset,tf,ERT,8³\nphantom:sphere:32,class,70000,50000\n",
+    )
+    .unwrap();
+    let err = advise::validate_table(
+        &cycles,
+        None,
+        &hardware,
+        (32, 32),
+        &advise::orbit_views(1, 0),
+        256,
+        |_| {},
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("cycle-cycles.csv") && err.contains("cycle-fps.csv"),
+        "{err}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Options that would change nothing are refused by name: hardware and view options with a
+/// results folder (its runs say how they ran), the fields the candidates set, views beyond the
+/// orbit, --out without --validate; a failed validation leaves no --out folder behind.
+#[test]
+fn options_that_would_change_nothing_are_refused() {
+    let exe = env!("CARGO_BIN_EXE_vizsim");
+    let refused = |args: &[&str], expected: &[&str]| {
+        let out = Command::new(exe).args(args).output().unwrap();
+        assert!(!out.status.success(), "{args:?} was accepted");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        for e in expected {
+            assert!(stderr.contains(e), "{args:?}: {stderr}");
+        }
+    };
+    let folder = env!("CARGO_TARGET_TMPDIR");
+    refused(
+        &[
+            "advise",
+            "--validate",
+            folder,
+            "--set",
+            "occupancy.sram_bits=1",
+        ],
+        &["--set does not apply"],
+    );
+    refused(
+        &[
+            "advise",
+            "--validate",
+            folder,
+            "--config",
+            "configs/hardware/vizard2.toml",
+        ],
+        &["--config does not apply"],
+    );
+    refused(
+        &[
+            "advise",
+            "--dataset",
+            "phantom:sphere:32",
+            "--set",
+            "compositing.ert=false",
+        ],
+        &["--set compositing.ert=false", "compositing.ert"],
+    );
+    refused(
+        &["advise", "--dataset", "phantom:sphere:32", "--views", "100"],
+        &["--views 100", "72"],
+    );
+    refused(
+        &["advise", "--dataset", "phantom:sphere:32", "--out", folder],
+        &["--out", "--validate"],
+    );
+    let out = std::path::Path::new(folder).join(format!("advise-out-{}", std::process::id()));
+    refused(
+        &[
+            "advise",
+            "--validate",
+            "/nonexistent/advise-results",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &["no such folder"],
+    );
+    assert!(!out.exists(), "a failed validation made {}", out.display());
 }
 
 /// The advisor builds one distance transform and narrows it to each width: the narrowed volume
@@ -358,4 +446,75 @@ fn the_closed_network_has_its_bounds() {
         assert!(c <= last + 1e-12, "{rays}: {c} > {last}");
         last = c;
     }
+}
+
+/// With --structures, ERT alone stays a candidate (the baseline every structure is ranked
+/// against: on the sphere it beats the distance volumes), and a structure the folder never ran
+/// is refused by name rather than reported as "no configuration fits".
+#[test]
+fn validation_keeps_ert_whatever_the_structures() {
+    let exe = env!("CARGO_BIN_EXE_vizsim");
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("vizsim-advise-structures-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let experiment = dir.join("tiny.toml");
+    std::fs::write(
+        &experiment,
+        "name = \"tiny\"\ndatasets = [\"phantom:sphere:32\"]\ntf = [\"zero\", \"class\"]\n\
+         modes = [\"ert\", \"ert+leap4\", \"ert+distance8\"]\nmodels = [\"cycle\"]\n\
+         [frames]\norbit = 72\nevery = 24\nsize = \"32x32\"\n",
+    )
+    .unwrap();
+    let results = dir.join("runs");
+    let sweep = Command::new(exe)
+        .args(["sweep", experiment.to_str().unwrap(), "--out"])
+        .arg(&results)
+        .output()
+        .unwrap();
+    assert!(
+        sweep.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sweep.stderr)
+    );
+    let validate = |structures: &str| {
+        Command::new(exe)
+            .args(["advise", "--validate"])
+            .arg(&results)
+            .args(["--structures", structures, "--json"])
+            .output()
+            .unwrap()
+    };
+    let out = validate("distance");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let advised: Vec<&str> = report["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["advised"].as_str().unwrap())
+        .collect();
+    assert_eq!(advised.len(), 2);
+    assert!(
+        advised
+            .iter()
+            .all(|m| *m == "ert" || m.contains("distance")),
+        "{advised:?}"
+    );
+    assert!(
+        advised.contains(&"ert"),
+        "ERT is never advised: {advised:?}"
+    );
+    let out = validate("leap-values");
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("--structures leap-values") && stderr.contains("no run with it"),
+        "{stderr}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -878,3 +878,22 @@ fn a_run_that_fails_to_write_one_output_leaves_none() {
         }
     }
 }
+
+/// A published name that resolves to its stand-in says so on standard error: standard output
+/// stays JSON with `--json` (real data: the tooth stands in for the skull).
+#[test]
+fn a_stand_in_note_leaves_json_output_parseable() {
+    let Some(data) = common::data_dir() else {
+        return;
+    };
+    let data = data.display().to_string();
+    let out = succeeds(&["info", "skull", "--json", "--data-dir", &data]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let report: serde_json::Value = serde_json::from_str(&stdout)
+        .unwrap_or_else(|e| panic!("info skull --json is not JSON ({e}): {stdout}"));
+    assert!(report.is_object(), "{report}");
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("stand-in tooth_103x94x161"),
+        "the note is still given"
+    );
+}

@@ -27,15 +27,18 @@ pub struct AdviseArgs {
     dataset: Option<String>,
     #[command(flatten)]
     data: DataArgs,
-    /// Transfer function: `zero` ('0' map), `class` (the dataset's own), a preset or a file.
-    #[arg(long, default_value = "class")]
-    tf: String,
-    /// Image size WxH the frame rate is predicted for.
-    #[arg(long, default_value = "256x256")]
-    size: String,
-    /// Views the prediction averages over: this many, evenly spaced on the 72-frame orbit.
-    #[arg(long, default_value_t = 4)]
-    views: u32,
+    /// Transfer function: `zero` ('0' map), `class` (the dataset's own, the default), a preset
+    /// or a file. Not with a --validate folder (its runs say).
+    #[arg(long)]
+    tf: Option<String>,
+    /// Image size WxH the frame rate is predicted for (default 256x256). Not with a --validate
+    /// folder (its runs say).
+    #[arg(long)]
+    size: Option<String>,
+    /// Views the prediction averages over: this many (1..=72, default 4), evenly spaced on the
+    /// 72-frame orbit. Not with a --validate folder (its runs say).
+    #[arg(long)]
+    views: Option<u32>,
     /// Rays per view the functional model traces (the image is scaled down to at most this
     /// many; the counts are scaled back up). Larger is closer and slower.
     #[arg(long, default_value_t = 2048)]
@@ -63,40 +66,60 @@ pub struct AdviseArgs {
     /// the hardware options say how it was run.
     #[arg(long, value_name = "RESULTS_DIR")]
     validate: Option<PathBuf>,
-    /// With --validate: most frames of a pair the advisor uses (evenly spaced among them).
-    #[arg(long, default_value_t = 4, requires = "validate")]
-    max_views: usize,
+    /// With a --validate folder: most frames of a pair the advisor uses (evenly spaced among
+    /// them; default 4).
+    #[arg(long, requires = "validate")]
+    max_views: Option<usize>,
     /// With --validate: write validation.md, validation.csv and validation.json here.
     #[arg(long, requires = "validate")]
     out: Option<PathBuf>,
 }
 
+const DEFAULT_TF: &str = "class";
+const DEFAULT_SIZE: &str = "256x256";
+const DEFAULT_VIEWS: u32 = 4;
+const DEFAULT_MAX_VIEWS: usize = 4;
+
 pub fn run(args: AdviseArgs) -> Result<()> {
+    anyhow::ensure!(args.rays >= 64, "--rays {}: at least 64", args.rays);
+    advise::check_overrides(&args.overrides)?;
     if let Some(dir) = &args.validate {
         return validate(&args, dir);
     }
+    // (clap's `requires` does not hold these back: checked here.)
+    anyhow::ensure!(
+        args.out.is_none() && args.max_views.is_none(),
+        "--out and --max-views apply to --validate only"
+    );
     let dataset = args.dataset.as_deref().expect("clap requires --dataset");
+    let tf = args.tf.as_deref().unwrap_or(DEFAULT_TF);
     // Maps alone lose up to 59 % where a distance volume is the best (docs/advise.md); with
     // both, the advice stays under 2 s for 256³.
     let structures =
         parse_structures(&args)?.unwrap_or_else(|| vec![Structure::Map, Structure::Distance]);
     let hardware = load_hardware(&args)?;
-    let size = parse_image_size(&args.size).context("--size")?;
-    anyhow::ensure!(args.views >= 1, "--views 0: at least one view");
-    anyhow::ensure!(args.rays >= 64, "--rays {}: at least 64", args.rays);
+    let size = image_size(&args)?;
+    let views = view_count(&args)?;
+    let sample_size = advise::reduced_size(size, args.rays);
     let base = RunDescription {
         size,
-        ..RunDescription::new(dataset, &args.tf, Model::Step, hardware)
+        ..RunDescription::new(dataset, tf, Model::Step, hardware)
     };
-    base.validate()?;
+    // Checked at the size the functional model traces: the frame itself is never rendered, so
+    // the memory budget applies to the reduced image only.
+    RunDescription {
+        size: sample_size,
+        ..base.clone()
+    }
+    .validate()?;
     let volume = args.data.load(dataset).context("--dataset")?;
     let options = AdviseOptions {
-        views: advise::orbit_views(args.views, 0),
-        sample_size: advise::reduced_size(size, args.rays),
+        views: advise::orbit_views(views, 0),
+        sample_size,
         structures,
     };
     let advice = advise::advise(&base, &volume, &options)
-        .with_context(|| format!("--dataset {dataset} --tf {}", args.tf))?;
+        .with_context(|| format!("--dataset {dataset} --tf {tf}"))?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&advice)?);
         return Ok(());
@@ -105,15 +128,65 @@ pub fn run(args: AdviseArgs) -> Result<()> {
     Ok(())
 }
 
+/// `--size`, or the default.
+fn image_size(args: &AdviseArgs) -> Result<(u32, u32)> {
+    let text = args.size.as_deref().unwrap_or(DEFAULT_SIZE);
+    parse_image_size(text).with_context(|| format!("--size {text}"))
+}
+
+/// `--views`, or the default: views of the 72-frame orbit.
+fn view_count(args: &AdviseArgs) -> Result<u32> {
+    let views = args.views.unwrap_or(DEFAULT_VIEWS);
+    anyhow::ensure!(
+        (1..=72).contains(&views),
+        "--views {views}: 1 to 72 (views are frames of the 72-frame orbit)"
+    );
+    Ok(views)
+}
+
 fn validate(args: &AdviseArgs, dir: &std::path::Path) -> Result<()> {
     let data_dir = args.data.dir()?;
+    let table = dir.extension().is_some_and(|e| e == "csv");
+    // A folder's runs say how they were run; a table cannot, so only a table takes these.
+    if !table {
+        let given = [
+            ("--tf", args.tf.is_some()),
+            ("--size", args.size.is_some()),
+            ("--views", args.views.is_some()),
+            ("--config", args.config.is_some()),
+            ("--set", !args.overrides.is_empty()),
+        ];
+        if let Some((option, _)) = given.iter().find(|(_, given)| *given) {
+            anyhow::bail!(
+                "{option} does not apply to --validate {}: a results folder's runs say how they \
+                 were run (only a `{}` table takes it)",
+                dir.display(),
+                advise::FPS_TABLE
+            );
+        }
+    } else {
+        let given = [
+            ("--tf", args.tf.is_some()),
+            ("--structures", args.structures.is_some()),
+            ("--max-views", args.max_views.is_some()),
+        ];
+        if let Some((option, _)) = given.iter().find(|(_, given)| *given) {
+            anyhow::bail!(
+                "{option} does not apply to --validate {}: a table is validated for its rows' \
+                 transfer functions, every structure it holds and --views views",
+                dir.display()
+            );
+        }
+    }
+    let max_views = args.max_views.unwrap_or(DEFAULT_MAX_VIEWS);
+    anyhow::ensure!(max_views >= 1, "--max-views 0: at least one view");
     let options = ValidateOptions {
         max_rays: args.rays,
-        max_views: args.max_views,
+        max_views,
         structures: parse_structures(args)?,
     };
     if let Some(out) = &args.out {
-        std::fs::create_dir_all(out).with_context(|| format!("--out {}", out.display()))?;
+        vizsim::experiment::store::must_be_a_folder(out)?;
     }
     let quiet = args.json;
     let report = |row: &advise::ValidationRow| {
@@ -131,25 +204,26 @@ fn validate(args: &AdviseArgs, dir: &std::path::Path) -> Result<()> {
             );
         }
     };
-    let validation = if dir.extension().is_some_and(|e| e == "csv") {
+    let validation = if table {
         // A table of mean frame rates (the protocol's cycle-fps.csv): the advisor runs with
         // --size, --views and the hardware options, which the table cannot say.
-        let size = parse_image_size(&args.size).context("--size")?;
         advise::validate_table(
             dir,
             data_dir.as_deref(),
             &load_hardware(args)?,
-            size,
-            &advise::orbit_views(args.views, 0),
+            image_size(args)?,
+            &advise::orbit_views(view_count(args)?, 0),
             args.rays,
             report,
-        )
+        )? // its errors name the table
     } else {
         advise::validate(dir, data_dir.as_deref(), &options, report)
-    }
-    .with_context(|| format!("--validate {}", dir.display()))?;
+            .with_context(|| format!("--validate {}", dir.display()))?
+    };
     let command = super::invocation();
     if let Some(out) = &args.out {
+        // Made only now: a validation that fails leaves no empty folder behind.
+        std::fs::create_dir_all(out).with_context(|| format!("--out {}", out.display()))?;
         advise::write_validation(out, &validation, &command)?;
     }
     if args.json {

@@ -154,7 +154,10 @@ impl DataArgs {
 /// Says so when a published dataset name resolves to its stand-in.
 pub fn note_stand_in(spec: &str) {
     if let Some(stand_in) = dataset::stand_in_for(spec) {
-        println!("{spec}: the published dataset is not available; its stand-in {stand_in} is used");
+        // On standard error: standard output may be JSON (`--json`).
+        eprintln!(
+            "{spec}: the published dataset is not available; its stand-in {stand_in} is used"
+        );
     }
 }
 
