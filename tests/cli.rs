@@ -820,6 +820,46 @@ fn messages_name_the_option_at_fault() {
             "{command}: {stderr}"
         );
     }
+    // A metric no result carries is said, not tabulated as nothing: alone it is an error and
+    // writes nothing; among others a note.
+    let tables = dir.join("tables");
+    let out = vizsim(&[
+        "table",
+        sweep.to_str().unwrap(),
+        "--out",
+        tables.to_str().unwrap(),
+        "--metric",
+        "cycles",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("--metric cycles"),
+        "{stderr}"
+    );
+    assert!(!tables.exists(), "a table of nothing was written");
+    let out = succeeds(&[
+        "table",
+        sweep.to_str().unwrap(),
+        "--out",
+        tables.to_str().unwrap(),
+        "--metric",
+        "cycles,steps",
+    ]);
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("no result carries --metric cycles"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // An empty results file: no charts claimed, as `table` says.
+    let empty = dir.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    std::fs::write(empty.join("results.jsonl"), b"").unwrap();
+    let out = vizsim(&["plot", empty.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("no results"),
+        "{stderr}"
+    );
     let vcd = dir.join("w.vcd");
     let out = vizsim(&[
         "sim",

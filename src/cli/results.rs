@@ -54,6 +54,11 @@ pub fn plot(args: PlotArgs) -> Result<()> {
     let out = args.out.unwrap_or_else(|| args.results.dir.join("plots"));
     vizsim::experiment::store::must_be_a_folder(&out)?;
     let lines = args.results.read()?;
+    anyhow::ensure!(
+        !lines.is_empty(),
+        "{}: no results",
+        args.results.dir.display()
+    );
     let written = vizsim::figures::write_all(&lines, &out)?;
     println!("{written} charts -> {}", out.display());
     Ok(())
@@ -139,11 +144,14 @@ pub fn write_tables(
         .map(Path::to_path_buf)
         .unwrap_or_else(|| dir.join("tables"));
     vizsim::experiment::store::must_be_a_folder(&out)?;
-    let metrics = if metrics.is_empty() {
-        vec![Metric::Fps, Metric::Cycles, Metric::Steps, Metric::PageHits]
-    } else {
+    let asked = !metrics.is_empty();
+    let metrics = if asked {
         metrics.to_vec()
+    } else {
+        vec![Metric::Fps, Metric::Cycles, Metric::Steps, Metric::PageHits]
     };
+    // Which asked metrics no result carries: said, rather than left out without a word.
+    let mut tabulated = vec![false; metrics.len()];
     let made_by = super::invocation();
     let mut all_markdown = String::new();
     for model in ["step", "cycle"] {
@@ -154,10 +162,11 @@ pub fn write_tables(
         if of_model.is_empty() {
             continue;
         }
-        for &metric in &metrics {
+        for (m, &metric) in metrics.iter().enumerate() {
             if !of_model.iter().any(|l| metric.value(l).is_some()) {
                 continue;
             }
+            tabulated[m] = true;
             // Skippable sub-cubes are a property of the map, not of a model's timing.
             let clock = match (metric, model) {
                 (Metric::Skippable, _) => "occupancy map",
@@ -190,6 +199,28 @@ pub fn write_tables(
             all_markdown += &md;
             all_markdown += "\n";
         }
+    }
+    let missing: Vec<&str> = metrics
+        .iter()
+        .zip(&tabulated)
+        .filter(|(_, t)| !**t)
+        .map(|(m, _)| m.file_name())
+        .collect();
+    let of_model = results
+        .model
+        .as_deref()
+        .map_or(String::new(), |m| format!(" of the {m} model"));
+    anyhow::ensure!(
+        tabulated.iter().any(|&t| t),
+        "{}: no result{of_model} carries --metric {}",
+        dir.display(),
+        missing.join(",")
+    );
+    if asked && !missing.is_empty() {
+        eprintln!(
+            "note: no result{of_model} carries --metric {}: no table for it",
+            missing.join(",")
+        );
     }
     let summary = match &results.model {
         Some(m) => format!("tables-{m}.md"),
