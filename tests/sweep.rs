@@ -162,6 +162,40 @@ fn bad_experiments_fail_before_any_run_naming_axis_and_value() {
             ),
             "empty [[exclude]]",
         ),
+        // A probe (2026-12-02): values that match nothing or repeat were accepted silently,
+        // and modes left out by the volume's size were blamed on `exclude`.
+        (
+            (
+                "\"ray_queue.rays\" = [8, 16]",
+                "\"ray_queue.rays\" = [8, 16]\n[[exclude]]\nmodel = \"fast\"",
+            ),
+            "`model = \"fast\"` matches no run",
+        ),
+        (
+            (
+                "\"ray_queue.rays\" = [8, 16]",
+                "\"ray_queue.rays\" = [8, 16]\n[[exclude]]\n\"ray_queue.rays\" = 32",
+            ),
+            "matches no run",
+        ),
+        (
+            ("\"none\", \"ert+leap4\"", "\"ert+ert\", \"ert+leap4\""),
+            "`ert` is given twice",
+        ),
+        (
+            (
+                "models = [\"step\", \"cycle\"]",
+                "models = [\"step\"]\nsample = 0.1",
+            ),
+            "field `sample`",
+        ),
+        (
+            (
+                "modes = [\"none\", \"ert+leap4\", \"ert+leap8+hier\"]",
+                "modes = [\"ert+leap64\"]",
+            ),
+            "field `modes`: no run is left",
+        ),
     ] {
         let exp = write_experiment(&dir, &TINY.replace(edit.0, edit.1));
         let out = dir.join("out");

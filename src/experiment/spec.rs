@@ -200,7 +200,12 @@ impl Mode {
         if text == "none" {
             return Ok(mode);
         }
+        let mut seen: Vec<&str> = Vec::new();
         for token in text.split('+') {
+            if seen.contains(&token) {
+                return Err(format!("`{token}` is given twice"));
+            }
+            seen.push(token);
             match token {
                 "ert" => mode.ert = true,
                 "hier" => mode.hierarchy = true,
@@ -543,6 +548,12 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
                 .into(),
         ));
     }
+    if sample.is_some() && !models.contains(&Model::Cycle) {
+        return Err(bad(
+            "sample",
+            "sampling times cycle-model runs; `models` has no \"cycle\"".into(),
+        ));
+    }
     // The time axis: checked before anything is loaded.
     let sequence = match &experiment.sequence {
         None => None,
@@ -817,13 +828,48 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
                     .into(),
             ));
         }
-        for k in rule.keys() {
+        for (k, v) in rule {
             let known = ["dataset", "tf", "mode", "model"].contains(&k.as_str())
                 || axes.iter().any(|(p, _)| p == k);
             if !known {
                 return Err(bad(
                     "exclude",
                     format!("`{k}` is neither dataset, tf, mode, model nor an axis"),
+                ));
+            }
+            // A value no run has (a typo) would exclude nothing without a word.
+            let text = v.as_str();
+            let (matches, listed) = match k.as_str() {
+                "dataset" => (
+                    text.is_some_and(|t| experiment.datasets.iter().any(|d| d == t)),
+                    "`datasets`".to_string(),
+                ),
+                "tf" => (
+                    text.is_some_and(|t| experiment.tf.iter().any(|d| d == t)),
+                    "`tf`".to_string(),
+                ),
+                "mode" => (
+                    text.and_then(|t| Mode::parse(t).ok())
+                        .is_some_and(|m| modes.contains(&m)),
+                    "`modes`".to_string(),
+                ),
+                "model" => (
+                    text.is_some_and(|t| experiment.models.iter().any(|d| d == t)),
+                    "`models`".to_string(),
+                ),
+                path => {
+                    let values = &axes.iter().find(|(p, _)| p == path).expect("known").1;
+                    let wanted = toml_to_json(v);
+                    (
+                        values.iter().any(|x| toml_to_json(x) == wanted),
+                        format!("`axes.\"{path}\"`"),
+                    )
+                }
+            };
+            if !matches {
+                return Err(bad(
+                    "exclude",
+                    format!("`{k} = {v}` matches no run: not among the values of {listed}"),
                 ));
             }
         }
@@ -943,8 +989,19 @@ impl Plan {
             duplicates,
         };
         if passed == 0 {
+            // Left out for the modes' sake alone, the modes (with the datasets) are the cause;
+            // `exclude` only when it took part.
+            let excludes = !self.experiment.exclude.is_empty();
+            let field = if excludes { "exclude" } else { "modes" };
             let why = if omitted.skipped.is_empty() {
                 "every run is excluded by `exclude`".to_string()
+            } else if !excludes {
+                let first = &omitted.skipped[0];
+                format!(
+                    "no run is left: every mode's points were left out for sub-cube size or \
+                     SRAM fit (first: {} {}: {}); check `modes` against `datasets`",
+                    first.dataset, first.mode, first.reason
+                )
             } else {
                 let first = &omitted.skipped[0];
                 format!(
@@ -956,7 +1013,7 @@ impl Plan {
                     first.reason
                 )
             };
-            return Err(Error::config(&self.source, "exclude", why));
+            return Err(Error::config(&self.source, field, why));
         }
         Ok(omitted)
     }
