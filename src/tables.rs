@@ -324,16 +324,32 @@ pub fn build(
             }
         }
     }
-    // A misspelt field would tabulate as an empty column: name it instead.
-    for f in row_fields.iter().map(String::as_str).chain([column_field]) {
+    // A misspelt field would tabulate as an empty column: name it, and the option, instead.
+    let fields = row_fields
+        .iter()
+        .map(|f| ("--rows", f.as_str()))
+        .chain([("--columns", column_field)]);
+    for (option, f) in fields {
         if !lines.iter().any(|l| field_text(l, f).is_some()) {
             return Err(Error::Invalid(format!(
-                "`{f}` is not a field of these results; fields: dataset, tf, mode, model, \
-                 frame, view, the sequence fields (map, dt, brick, time_step) or a swept \
+                "{option}: `{f}` is not a field of these results; fields: dataset, tf, mode, \
+                 model, frame, view, the sequence fields (map, dt, brick, time_step) or a swept \
                  field{}",
                 axes_listed(lines)
             )));
         }
+    }
+    // A field twice would repeat a column, or tabulate a diagonal.
+    if let Some(f) = row_fields
+        .iter()
+        .enumerate()
+        .find(|(i, f)| row_fields[..*i].contains(f) || *f == column_field)
+        .map(|(_, f)| f)
+    {
+        return Err(Error::Invalid(format!(
+            "--rows {}: `{f}` is given twice (in --rows, or in --rows and --columns)",
+            row_fields.join(",")
+        )));
     }
     for f in &varying {
         if !row_fields.contains(f) && column_field != f {
@@ -648,6 +664,35 @@ mod tests {
             line["cycles_ci95"] = 10.0.into();
         }
         line
+    }
+
+    /// A field unknown, repeated in --rows, or in both --rows and --columns is refused, naming
+    /// the option (a probe found an empty column, a repeated one and a diagonal table).
+    #[test]
+    fn rows_and_columns_name_the_option_and_take_a_field_once() {
+        let lines = [line("ert", 0, 100, false), line("none", 0, 150, false)];
+        let refs: Vec<&serde_json::Value> = lines.iter().collect();
+        let fields = |list: &[&str]| list.iter().map(|f| f.to_string()).collect::<Vec<_>>();
+        for (rows, column, expected) in [
+            (fields(&["datset"]), "mode", "--rows: `datset`"),
+            (fields(&["dataset"]), "mdoe", "--columns: `mdoe`"),
+            (fields(&["dataset", "dataset"]), "mode", "given twice"),
+            (fields(&["dataset", "mode"]), "mode", "given twice"),
+        ] {
+            let error = build(&refs, Metric::Cycles, &rows, column, "t".into())
+                .err()
+                .unwrap_or_else(|| panic!("{rows:?} / {column} accepted"))
+                .to_string();
+            assert!(error.contains(expected), "{rows:?} / {column}: {error}");
+        }
+        assert!(build(
+            &refs,
+            Metric::Cycles,
+            &fields(&["dataset"]),
+            "mode",
+            "t".into()
+        )
+        .is_ok());
     }
 
     /// Two results of one frame in a cell (a sweep folder that mixes configurations the rows
