@@ -990,7 +990,7 @@ pub fn validate(
 pub fn advice_text(advice: &Advice) -> String {
     use std::fmt::Write;
     let mut text = format!(
-        "advice for {} ({}x{}x{}), transfer function {} ({}), {}x{} image, mean over {} views\n\
+        "advice for {} ({}x{}x{}), transfer function {} ({}), {}x{} image, mean over {} view{}\n\
          functional model at {}x{} per view; cost model: {:.3} cycles per sample, {} rays, \
          SRAM {} bits\n\n",
         advice.dataset,
@@ -1002,6 +1002,7 @@ pub fn advice_text(advice: &Advice) -> String {
         advice.size.0,
         advice.size.1,
         advice.views.len(),
+        if advice.views.len() == 1 { "" } else { "s" },
         advice.sample_size.0,
         advice.sample_size.1,
         advice.cost_model.cycles_per_sample,

@@ -294,7 +294,7 @@ impl Sequence {
                     let last = spec.time + (steps - 1) as f32 * dt;
                     if !last.is_finite() {
                         return Err(Error::Invalid(format!(
-                            "time step dt = {dt}: the time of step {} overflows ({last}); give a \
+                            "time step dt = {dt:e}: the time of step {} overflows ({last}); give a \
                              smaller dt or fewer steps",
                             steps - 1
                         )));

@@ -850,6 +850,18 @@ fn messages_name_the_option_at_fault() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    // A requested dataset the results do not hold is named, even beside one they hold.
+    let out = vizsim(&[
+        "table",
+        sweep.to_str().unwrap(),
+        "--dataset",
+        "phantom:sphere:16,nosuch",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("--dataset nosuch"),
+        "{stderr}"
+    );
     // An empty results file: no charts claimed, as `table` says.
     let empty = dir.join("empty");
     std::fs::create_dir_all(&empty).unwrap();

@@ -91,6 +91,14 @@ impl ResultsArgs {
             );
         }
         let mut lines = vizsim::tables::read_results(&self.dir.join("results.jsonl"))?;
+        // A requested dataset the results do not hold (a typo) is named, not ignored.
+        if let Some(absent) = self.dataset.iter().find(|d| {
+            !lines
+                .iter()
+                .any(|l| l.get("dataset").and_then(|v| v.as_str()) == Some(d.as_str()))
+        }) {
+            anyhow::bail!("{}: no results of --dataset {absent}", self.dir.display());
+        }
         lines.retain(|l| {
             let frame_kept = l
                 .get("frame")

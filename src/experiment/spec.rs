@@ -591,7 +591,7 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
                 return Err(bad(
                     "sequence.dt",
                     format!(
-                        "{}: the time of step {} overflows; give a smaller dt or fewer steps",
+                        "{:e}: the time of step {} overflows; give a smaller dt or fewer steps",
                         seq.dt,
                         seq.steps - 1
                     ),
