@@ -40,9 +40,6 @@ pub struct RayQueue {
     /// Slots handed out by `slot_mut` since the last selection: their keys are recomputed
     /// before the next one.
     stale: Vec<usize>,
-    /// Per slot, a count of the times it was handed out, filled or emptied: a step computed
-    /// for the slot still holds while the count is unchanged (`version`).
-    versions: Vec<u32>,
     /// The last selection, while no key and not the round-robin pointer changed since: a cycle
     /// in which nothing issued (the memory or the compositing buffer full) and no key changed
     /// selects the same slot again without a scan.
@@ -68,7 +65,6 @@ impl RayQueue {
             slots: vec![None; rays],
             keys: vec![NOT_READY; rays],
             stale: Vec::new(),
-            versions: vec![0; rays],
             last_choice: None,
             occupied: 0,
             selection,
@@ -98,13 +94,7 @@ impl RayQueue {
     /// The slot to change (its issue key is recomputed before the next selection).
     pub fn slot_mut(&mut self, index: usize) -> Option<&mut RaySlot> {
         self.stale.push(index);
-        self.versions[index] = self.versions[index].wrapping_add(1);
         self.slots[index].as_mut()
-    }
-
-    /// Changes whenever slot `index` may have changed (handed out, filled or emptied).
-    pub fn version(&self, index: usize) -> u32 {
-        self.versions[index]
     }
 
     /// Sets slot `index`'s issue key; a different key voids the last selection.
@@ -124,7 +114,6 @@ impl RayQueue {
     pub fn admit(&mut self, index: usize, slot: RaySlot) {
         debug_assert!(self.slots[index].is_none());
         self.slots[index] = Some(slot);
-        self.versions[index] = self.versions[index].wrapping_add(1);
         self.set_key(index, key_of(&self.slots[index]));
         self.occupied += 1;
     }
@@ -132,7 +121,6 @@ impl RayQueue {
     /// Takes a ray out of its slot.
     pub fn remove(&mut self, index: usize) -> Option<RaySlot> {
         let slot = self.slots[index].take();
-        self.versions[index] = self.versions[index].wrapping_add(1);
         self.set_key(index, NOT_READY);
         self.occupied -= slot.is_some() as usize;
         slot
@@ -200,7 +188,6 @@ impl RayQueue {
         if let Some(s) = self.slots[index].as_mut() {
             s.terminated = true;
         }
-        self.versions[index] = self.versions[index].wrapping_add(1);
         self.set_key(index, NOT_READY);
         Some(index)
     }
