@@ -121,6 +121,21 @@ fn expansion_is_the_product_with_zip_and_exclusions() {
         .any(|r| r.run.model == Model::Cycle && r.run.hardware.ray_queue.rays == 8));
 }
 
+/// Exclude values that runs have are accepted however they are written: a mode's tokens in
+/// another order, and the mode a sequence's `none` map renders (the mode without its map).
+#[test]
+fn excludes_that_match_runs_are_accepted() {
+    let reordered = format!("{TINY}\n[[exclude]]\nmode = \"leap4+ert\"\n");
+    let e = expand(&reordered, "r", None).unwrap();
+    assert!(e.runs.iter().all(|r| r.run.hardware.occupancy.subcube != 4));
+    let sequence = "name = \"dyn\"\ndatasets = [\"phantom:metaballs:32\"]\ntf = [\"class\"]\n\
+        modes = [\"ert+leap8\"]\nmodels = [\"cycle\"]\n[frames]\norbit = 1\nsize = \"16x16\"\n\
+        [sequence]\nsteps = 2\nmap = [\"update\", \"none\"]\n[[exclude]]\nmode = \"ert\"\n";
+    let e = expand(sequence, "dyn", None).unwrap();
+    assert_eq!(e.runs.len(), 2, "the runs without a map are excluded");
+    assert!(e.runs.iter().all(|r| r.run.hardware.occupancy.subcube == 8));
+}
+
 #[test]
 fn bad_experiments_fail_before_any_run_naming_axis_and_value() {
     let dir = temp_dir("bad");
@@ -180,7 +195,11 @@ fn bad_experiments_fail_before_any_run_naming_axis_and_value() {
         ),
         (
             ("\"none\", \"ert+leap4\"", "\"ert+ert\", \"ert+leap4\""),
-            "`ert` is given twice",
+            "a ert token is given twice",
+        ),
+        (
+            ("\"none\", \"ert+leap4\"", "\"ert+leap4+leap8\""),
+            "a leap token is given twice",
         ),
         (
             (
@@ -922,7 +941,9 @@ fn repeated_values_empty_exclusions_and_left_out_runs_are_named() {
     assert!(empty.contains("an empty [[exclude]] table"), "{empty}");
     let left_out = message(&base.replace("[\"none\"]", "[\"ert+leap16\"]"));
     assert!(
-        left_out.contains("left out for sub-cube size") && !left_out.contains("excluded by"),
+        left_out.contains("field `modes`")
+            && left_out.contains("sub-cube larger than the volume")
+            && !left_out.contains("excluded by"),
         "{left_out}"
     );
 }

@@ -200,12 +200,18 @@ impl Mode {
         if text == "none" {
             return Ok(mode);
         }
+        // One token of each kind: `leap4+leap8` would keep the last without a word.
         let mut seen: Vec<&str> = Vec::new();
         for token in text.split('+') {
-            if seen.contains(&token) {
-                return Err(format!("`{token}` is given twice"));
+            let kind = if token.starts_with("leapvalues") {
+                "leapvalues"
+            } else {
+                token.trim_end_matches(|c: char| c.is_ascii_digit())
+            };
+            if seen.contains(&kind) {
+                return Err(format!("`{token}`: a {kind} token is given twice"));
             }
-            seen.push(token);
+            seen.push(kind);
             match token {
                 "ert" => mode.ert = true,
                 "hier" => mode.hierarchy = true,
@@ -820,6 +826,19 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
         );
         crate::camera::View::parse(&view).map_err(|e| bad("frames.path", e.to_string()))?;
     }
+    // The modes runs have: a sequence's `none` map renders each mode without its map, and an
+    // exclude may name that mode (docs/experiments.md).
+    let mut run_modes = modes.clone();
+    if sequence
+        .as_ref()
+        .is_some_and(|(_, maps)| maps.contains(&MapMode::None))
+    {
+        run_modes.extend(modes.iter().map(|m| Mode {
+            subcube: 0,
+            hierarchy: false,
+            ..*m
+        }));
+    }
     for rule in &experiment.exclude {
         if rule.is_empty() {
             return Err(bad(
@@ -850,7 +869,7 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
                 ),
                 "mode" => (
                     text.and_then(|t| Mode::parse(t).ok())
-                        .is_some_and(|m| modes.contains(&m)),
+                        .is_some_and(|m| run_modes.contains(&m)),
                     "`modes`".to_string(),
                 ),
                 "model" => (
@@ -998,15 +1017,15 @@ impl Plan {
             } else if !excludes {
                 let first = &omitted.skipped[0];
                 format!(
-                    "no run is left: every mode's points were left out for sub-cube size or \
-                     SRAM fit (first: {} {}: {}); check `modes` against `datasets`",
+                    "no run is left: every mode's points were left out (first: {} {}: {}); \
+                     check `modes` against `datasets` and `[sequence] map`",
                     first.dataset, first.mode, first.reason
                 )
             } else {
                 let first = &omitted.skipped[0];
                 format!(
-                    "no run is left: {} points were left out for sub-cube size or SRAM fit \
-                     (first: {} {}: {}), the rest excluded",
+                    "no run is left: {} points were left out (first: {} {}: {}), the rest \
+                     excluded",
                     omitted.skipped.len(),
                     first.dataset,
                     first.mode,
