@@ -62,7 +62,11 @@ impl Structure {
 pub fn check_overrides(overrides: &[String]) -> Result<()> {
     for o in overrides {
         let field = o.split_once('=').map_or(o.as_str(), |(f, _)| f).trim();
-        if MODE_FIELDS.contains(&field) {
+        // The fields `apply_mode` sets; bricks and iso mode are the run's own and stay.
+        let set_by_candidates = MODE_FIELDS.contains(&field)
+            && !field.starts_with("bricks.")
+            && !field.starts_with("iso.");
+        if set_by_candidates {
             return Err(Error::Invalid(format!(
                 "--set {o}: the advisor ranks configurations that set `{field}` themselves \
                  (ERT, maps, hierarchy, distance volumes, leap values; the map kind follows --tf)"
@@ -875,6 +879,26 @@ pub fn validate(
         ));
     }
     let mut rows = Vec::new();
+    // A structure asked for that no run of the folder has would restrict the advice to
+    // nothing of it: refused before any pair is advised.
+    if let Some(asked) = &options.structures {
+        let ran = |s: &Structure| {
+            pairs
+                .values()
+                .flat_map(|p| p.modes.keys())
+                .any(|m| match s {
+                    Structure::Map => m.contains("leap") && !m.contains("leapvalues"),
+                    Structure::Distance => m.contains("distance"),
+                    Structure::LeapValues => m.contains("leapvalues"),
+                })
+        };
+        if let Some(missing) = asked.iter().find(|s| !ran(s)) {
+            return Err(Error::Invalid(format!(
+                "--structures {}: the folder holds no run with it",
+                missing.name()
+            )));
+        }
+    }
     for pair in pairs.values() {
         let overrides: Vec<String> = pair
             .axes
@@ -902,14 +926,6 @@ pub fn validate(
         }
         // The advice is restricted to the structures asked for; the truth ranks them all.
         let allowed = options.structures.clone().unwrap_or(structures.clone());
-        if let Some(missing) = allowed.iter().find(|s| !structures.contains(s)) {
-            return Err(Error::Invalid(format!(
-                "--structures {}: no run with it for {} with {}",
-                missing.name(),
-                pair.dataset,
-                pair.tf
-            )));
-        }
         let mut advice = advise(
             &base,
             &volume,
@@ -1206,10 +1222,8 @@ pub fn validate_table(
 ) -> Result<Validation> {
     if path.file_name().and_then(|n| n.to_str()) != Some(FPS_TABLE) {
         return Err(Error::Invalid(format!(
-            "--validate {}: expected the cycle model's frame-rate table, `{FPS_TABLE}` as `vizsim table \
-             --model cycle --metric fps` writes it (another table's cells would be read as frame \
-             rates)",
-            path.display()
+            "expected the cycle model's frame-rate table, `{FPS_TABLE}` as `vizsim table --model \
+             cycle --metric fps` writes it (another table's cells would be read as frame rates)"
         )));
     }
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;

@@ -97,9 +97,14 @@ impl View {
         };
         let (file, frame) = rest.rsplit_once(':').ok_or_else(|| bad("no `:K/N`"))?;
         let (k, n) = frame.split_once('/').ok_or_else(|| bad("no `/` in K/N"))?;
-        // Parsed wide, so that a whole number too large is called out of range, not malformed.
-        let k: u64 = k.parse().map_err(|_| bad("K is not a whole number"))?;
-        let n: u64 = n.parse().map_err(|_| bad("N is not a whole number"))?;
+        // A whole number too large is out of range, not malformed.
+        let whole = |text: &str, what: &str| -> Result<u64> {
+            if text.is_empty() || !text.bytes().all(|b| b.is_ascii_digit()) {
+                return Err(bad(&format!("{what} is not a whole number")));
+            }
+            Ok(text.parse().unwrap_or(u64::MAX))
+        };
+        let (k, n) = (whole(k, "K")?, whole(n, "N")?);
         if n == 0 || k >= n || n > crate::path::MAX_PATH_FRAMES as u64 {
             return Err(bad(&format!(
                 "frame {k} of {n} out of range (N at most {})",

@@ -36,7 +36,7 @@ use crate::error::{Error, Result};
 /// Largest accepted frame count N of a path view.
 pub const MAX_PATH_FRAMES: u32 = 1_000_000;
 
-/// Largest coordinate magnitude of a key's eye, look-at and up, in the path's units. Poses are
+/// Largest coordinate magnitude of a key's eye and look-at, in the path's units. Poses are
 /// computed in f32 (a 24-bit mantissa): a million units from the origin a sixteenth of a unit
 /// is still resolved; much farther, eye and look-at merge.
 pub const MAX_COORDINATE: f32 = 1e6;
@@ -155,8 +155,9 @@ impl CameraPath {
                 if v.iter().any(|c| !c.is_finite()) {
                     return Err(bad(format!("`key[{i}].{field}` = {v:?}: must be finite")));
                 }
-                // Poses are computed in f32: far beyond the volume, eye and look-at merge.
-                if v.iter().any(|c| c.abs() > MAX_COORDINATE) {
+                // Poses are computed in f32: far beyond the volume, eye and look-at merge (up is
+                // a direction, normalised: any length will do).
+                if field != "up" && v.iter().any(|c| c.abs() > MAX_COORDINATE) {
                     return Err(bad(format!(
                         "`key[{i}].{field}` = {v:?}: coordinates allowed within \
                          ±{MAX_COORDINATE:e} (in the path's units)"

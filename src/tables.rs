@@ -347,7 +347,7 @@ pub fn build(
         .map(|(_, f)| f)
     {
         return Err(Error::Invalid(format!(
-            "--rows {}: `{f}` is given twice (in --rows, or in --rows and --columns)",
+            "`{f}` is given twice: --rows {} (by default dataset,tf), --columns {column_field}",
             row_fields.join(",")
         )));
     }

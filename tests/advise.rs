@@ -316,7 +316,7 @@ fn a_table_is_validated_against_its_own_frame_rates() {
     .unwrap_err()
     .to_string();
     assert!(
-        err.contains("cycle-cycles.csv") && err.contains("cycle-fps.csv"),
+        err.contains("frame-rate table") && err.contains("cycle-fps.csv"),
         "{err}"
     );
     std::fs::remove_dir_all(&dir).unwrap();
@@ -366,6 +366,34 @@ fn options_that_would_change_nothing_are_refused() {
             "compositing.ert=false",
         ],
         &["--set compositing.ert=false", "compositing.ert"],
+    );
+    refused(
+        &["advise", "--validate", folder, "--tf", "zero"],
+        &["--tf does not apply"],
+    );
+    refused(
+        &["advise", "--validate", folder, "--size", "64x64"],
+        &["--size does not apply"],
+    );
+    refused(
+        &[
+            "advise",
+            "--validate",
+            "cycle-fps.csv",
+            "--structures",
+            "map",
+        ],
+        &["--structures does not apply"],
+    );
+    refused(
+        &[
+            "advise",
+            "--dataset",
+            "phantom:sphere:32",
+            "--max-views",
+            "2",
+        ],
+        &["--max-views", "--validate"],
     );
     refused(
         &["advise", "--dataset", "phantom:sphere:32", "--views", "100"],

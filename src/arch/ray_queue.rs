@@ -233,15 +233,23 @@ mod tests {
             events in proptest::collection::vec(
                 (0usize..20, proptest::option::of(0u64..5), proptest::bool::ANY), 1..200),
         ) {
-            let mut queue = RayQueue::new(slots, RaySelection::LaggingFirst);
-            for (slot, key, issues) in events {
-                if issues {
-                    queue.issued_from(slot % slots);
-                } else {
-                    queue.set_key(slot % slots, key.unwrap_or(NOT_READY));
+            for selection in [RaySelection::LaggingFirst, RaySelection::RoundRobin] {
+                let mut queue = RayQueue::new(slots, selection);
+                for &(slot, key, issues) in &events {
+                    if issues {
+                        queue.issued_from(slot % slots);
+                    } else {
+                        queue.set_key(slot % slots, key.unwrap_or(NOT_READY));
+                    }
+                    let start = queue.next_round_robin;
+                    let expected = match selection {
+                        RaySelection::RoundRobin => (start..slots)
+                            .chain(0..start)
+                            .find(|&i| queue.keys[i] != NOT_READY),
+                        _ => reference(&queue.keys, start),
+                    };
+                    proptest::prop_assert_eq!(queue.select(), expected);
                 }
-                let expected = reference(&queue.keys, queue.next_round_robin);
-                proptest::prop_assert_eq!(queue.select(), expected);
             }
         }
     }

@@ -46,8 +46,9 @@ pub struct AdviseArgs {
     /// Structures to rank besides ERT, comma-separated: map, distance, leap-values (default:
     /// map,distance). The distance volume and leap values are built for each run (about a
     /// second each on 256³); leap values' cost is only a lower bound, so they are opt-in.
-    /// With --validate: the structures the advice may pick (default: every structure the
-    /// folder ran); the true best is always over every configuration there.
+    /// With a --validate folder: the structures the advice may pick (default: every structure
+    /// the folder ran; ERT alone always may); the true best is always over every configuration
+    /// there.
     #[arg(long, value_delimiter = ',')]
     structures: Option<Vec<String>>,
     /// Hardware configuration TOML (default: the embedded, calibrated vizard2.toml).
@@ -60,10 +61,10 @@ pub struct AdviseArgs {
     #[arg(long)]
     json: bool,
     /// Validate: run the advisor for every (dataset, tf) of this sweep results folder and
-    /// compare its pick with the cycle model's fastest configuration that fits the SRAM. A
-    /// `.csv` table of mean frame rates (`vizsim table`'s layout, e.g. the protocol's
-    /// reports/paper-protocol/tables/cycle-fps.csv) is accepted too: then --size, --views and
-    /// the hardware options say how it was run.
+    /// compare its pick with the cycle model's fastest configuration that fits the SRAM. The
+    /// cycle model's table of mean frame rates, `cycle-fps.csv` (`vizsim table --model cycle
+    /// --metric fps`, e.g. reports/paper-protocol/tables/cycle-fps.csv), is accepted too: then
+    /// --size, --views and the hardware options say how it was run.
     #[arg(long, value_name = "RESULTS_DIR")]
     validate: Option<PathBuf>,
     /// With a --validate folder: most frames of a pair the advisor uses (evenly spaced among
@@ -149,8 +150,14 @@ fn validate(args: &AdviseArgs, dir: &std::path::Path) -> Result<()> {
     let table = dir.extension().is_some_and(|e| e == "csv");
     // A folder's runs say how they were run; a table cannot, so only a table takes these.
     if !table {
+        if args.tf.is_some() {
+            anyhow::bail!(
+                "--tf does not apply to --validate {}: each pair is validated for its runs' own \
+                 transfer function",
+                dir.display()
+            );
+        }
         let given = [
-            ("--tf", args.tf.is_some()),
             ("--size", args.size.is_some()),
             ("--views", args.views.is_some()),
             ("--config", args.config.is_some()),
@@ -215,7 +222,8 @@ fn validate(args: &AdviseArgs, dir: &std::path::Path) -> Result<()> {
             &advise::orbit_views(view_count(args)?, 0),
             args.rays,
             report,
-        )? // its errors name the table
+        )
+        .with_context(|| format!("--validate {}", dir.display()))?
     } else {
         advise::validate(dir, data_dir.as_deref(), &options, report)
             .with_context(|| format!("--validate {}", dir.display()))?
