@@ -256,16 +256,19 @@ fn a_table_is_validated_against_its_own_frame_rates() {
     )
     .unwrap();
     let hardware = HardwareConfig::load(None, &[]).unwrap();
-    let v = advise::validate_table(
-        &table,
-        None,
-        &hardware,
-        (32, 32),
-        &advise::orbit_views(1, 0),
-        256,
-        |_| {},
-    )
-    .unwrap();
+    // The table validated at 32x32 over one view.
+    let validate = |path: &std::path::Path| {
+        advise::validate_table(
+            path,
+            None,
+            &hardware,
+            (32, 32),
+            &advise::orbit_views(1, 0),
+            256,
+            |_| {},
+        )
+    };
+    let v = validate(&table).unwrap();
     assert_eq!(v.rows.len(), 1);
     let row = &v.rows[0];
     assert_eq!((row.best.as_str(), row.best_fps), ("ert+leap8+hier", 20.0));
@@ -282,17 +285,7 @@ fn a_table_is_validated_against_its_own_frame_rates() {
 
     // A malformed row names the file and the line.
     std::fs::write(&table, "dataset,tf,ERT\nphantom:sphere:32,grey,1.0\n").unwrap();
-    let err = advise::validate_table(
-        &table,
-        None,
-        &hardware,
-        (32, 32),
-        &advise::orbit_views(1, 0),
-        256,
-        |_| {},
-    )
-    .unwrap_err()
-    .to_string();
+    let err = validate(&table).unwrap_err().to_string();
     assert!(
         err.contains("cycle-fps.csv") && err.contains("line 2") && err.contains("grey"),
         "{err}"
@@ -304,17 +297,7 @@ fn a_table_is_validated_against_its_own_frame_rates() {
         "dataset,tf,ERT,8³\nphantom:sphere:32,class,70000,50000\n",
     )
     .unwrap();
-    let err = advise::validate_table(
-        &cycles,
-        None,
-        &hardware,
-        (32, 32),
-        &advise::orbit_views(1, 0),
-        256,
-        |_| {},
-    )
-    .unwrap_err()
-    .to_string();
+    let err = validate(&cycles).unwrap_err().to_string();
     assert!(
         err.contains("frame-rate table") && err.contains("cycle-fps.csv"),
         "{err}"
