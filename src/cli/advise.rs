@@ -28,7 +28,7 @@ pub struct AdviseArgs {
     #[command(flatten)]
     data: DataArgs,
     /// Transfer function: `zero` ('0' map), `class` (the dataset's own, the default), a preset
-    /// or a file. Not with a --validate folder (its runs say).
+    /// or a file. Not with --validate (each run or table row says).
     #[arg(long)]
     tf: Option<String>,
     /// Image size WxH the frame rate is predicted for (default 256x256). Not with a --validate
