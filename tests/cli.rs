@@ -823,20 +823,18 @@ fn messages_name_the_option_at_fault() {
     // A metric no result carries is said, not tabulated as nothing: alone it is an error and
     // writes nothing; among others a note.
     let tables = dir.join("tables");
-    let out = vizsim(&[
-        "table",
-        sweep.to_str().unwrap(),
-        "--out",
-        tables.to_str().unwrap(),
-        "--metric",
-        "cycles",
-    ]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !out.status.success() && stderr.contains("--metric cycles"),
-        "{stderr}"
+    assert_fails(
+        &[
+            "table",
+            sweep.to_str().unwrap(),
+            "--out",
+            tables.to_str().unwrap(),
+            "--metric",
+            "cycles",
+        ],
+        &["--metric cycles"],
+        &tables,
     );
-    assert!(!tables.exists(), "a table of nothing was written");
     let out = succeeds(&[
         "table",
         sweep.to_str().unwrap(),
@@ -851,26 +849,24 @@ fn messages_name_the_option_at_fault() {
         String::from_utf8_lossy(&out.stderr)
     );
     // A requested dataset the results do not hold is named, even beside one they hold.
-    let out = vizsim(&[
-        "table",
-        sweep.to_str().unwrap(),
-        "--dataset",
-        "phantom:sphere:16,nosuch",
-    ]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !out.status.success() && stderr.contains("--dataset nosuch"),
-        "{stderr}"
+    assert_fails(
+        &[
+            "table",
+            sweep.to_str().unwrap(),
+            "--dataset",
+            "phantom:sphere:16,nosuch",
+        ],
+        &["--dataset nosuch"],
+        &sweep.join("tables"),
     );
     // An empty results file: no charts claimed, as `table` says.
     let empty = dir.join("empty");
     std::fs::create_dir_all(&empty).unwrap();
     std::fs::write(empty.join("results.jsonl"), b"").unwrap();
-    let out = vizsim(&["plot", empty.to_str().unwrap()]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !out.status.success() && stderr.contains("no results"),
-        "{stderr}"
+    assert_fails(
+        &["plot", empty.to_str().unwrap()],
+        &["no results"],
+        &empty.join("plots"),
     );
     let vcd = dir.join("w.vcd");
     let out = vizsim(&[
