@@ -207,6 +207,78 @@ mod tests {
             .min_by_key(|&i| keys[i])
     }
 
+    fn ray_of(samples: u32) -> FixedRay {
+        FixedRay {
+            start: [0; 3],
+            step: [0; 3],
+            reciprocals: [None; 3],
+            samples,
+            first_k: 0,
+            light: [0; 3],
+            cut: 0,
+            bricks_visited: 0,
+            surface: None,
+            refinable_start: false,
+            t_range: [0.0; 2],
+        }
+    }
+
+    /// What the pipeline does to the queue, as the property test below drives it.
+    #[derive(Clone, Debug)]
+    enum Event {
+        /// A ray enters the first free slot at position k of `samples` (busy: its first
+        /// distance word is being read).
+        Admit { k: u64, samples: u32, busy: bool },
+        /// The selected ray issues: busy until its update returns.
+        Issue,
+        /// A slot's update returns (or its word arrives): new k, busy or not.
+        Update { slot: usize, k: u64, busy: bool },
+        /// ERT feedback for the ray in this slot.
+        Terminate { slot: usize },
+        /// The ray in this slot leaves.
+        Remove { slot: usize },
+    }
+
+    fn event() -> impl proptest::strategy::Strategy<Value = Event> {
+        use proptest::prelude::*;
+        prop_oneof![
+            (0u64..4, 0u32..5, any::<bool>()).prop_map(|(k, samples, busy)| Event::Admit {
+                k,
+                samples,
+                busy
+            }),
+            Just(Event::Issue),
+            Just(Event::Issue),
+            (0usize..8, 0u64..5, any::<bool>()).prop_map(|(slot, k, busy)| Event::Update {
+                slot,
+                k,
+                busy
+            }),
+            (0usize..8).prop_map(|slot| Event::Terminate { slot }),
+            (0usize..8).prop_map(|slot| Event::Remove { slot }),
+        ]
+    }
+
+    /// The selection by each policy's definition, from the slots themselves (not the keys).
+    fn defined_choice(queue: &RayQueue) -> Option<usize> {
+        let n = queue.slots.len();
+        let start = queue.next_round_robin;
+        let ready = |i: usize| queue.slots[i].as_ref().filter(|s| !s.busy && !s.finished());
+        let from_pointer = (start..n).chain(0..start);
+        match queue.selection {
+            RaySelection::RoundRobin => from_pointer.into_iter().find(|&i| ready(i).is_some()),
+            RaySelection::LaggingFirst => from_pointer
+                .into_iter()
+                .filter_map(|i| Some((i, ready(i)?.k)))
+                .min_by_key(|&(_, k)| k)
+                .map(|(i, _)| i),
+            RaySelection::OldestFirst => (0..n)
+                .filter_map(|i| Some((i, ready(i)?)))
+                .min_by_key(|(_, s)| (s.admitted, s.ray_id))
+                .map(|(i, _)| i),
+        }
+    }
+
     proptest::proptest! {
         /// Any key set (small keys: many ties; some slots not ready) and pointer: the
         /// selection picks the slot the definition picks.
@@ -249,6 +321,76 @@ mod tests {
                         _ => reference(&queue.keys, start),
                     };
                     proptest::prop_assert_eq!(queue.select(), expected);
+                }
+            }
+        }
+
+        /// The queue as the pipeline drives it (admissions, issues through the selection,
+        /// updates through `slot_mut`, ERT, removals), under every policy: after each event
+        /// the selection, with its keys and the choice kept between cycles, is the one the
+        /// policy defines from the slots as they are.
+        #[test]
+        fn the_selection_follows_the_slots_through_admit_issue_update_terminate_and_remove(
+            slots in 1usize..8,
+            events in proptest::collection::vec(event(), 1..120),
+        ) {
+            for selection in [
+                RaySelection::LaggingFirst,
+                RaySelection::RoundRobin,
+                RaySelection::OldestFirst,
+            ] {
+                let mut queue = RayQueue::new(slots, selection);
+                let mut next_ray = 0usize;
+                for (now, event) in events.iter().enumerate() {
+                    match *event {
+                        Event::Admit { k, samples, busy } => {
+                            if let Some(free) = queue.free_slot() {
+                                queue.admit(
+                                    free,
+                                    RaySlot {
+                                        ray_id: next_ray,
+                                        ray: ray_of(samples),
+                                        pos: [0; 3],
+                                        k,
+                                        busy,
+                                        terminated: false,
+                                        admitted: now as u64,
+                                        samples_issued: 0,
+                                        state: SkipState::default(),
+                                    },
+                                );
+                                next_ray += 1;
+                            }
+                        }
+                        Event::Issue => {
+                            if let Some(index) = queue.select() {
+                                queue.slot_mut(index).expect("a selected slot holds a ray").busy = true;
+                                queue.issued_from(index);
+                            }
+                        }
+                        Event::Update { slot, k, busy } => {
+                            if let Some(s) = queue.slot_mut(slot % slots) {
+                                s.k = k;
+                                s.busy = busy;
+                            }
+                        }
+                        Event::Terminate { slot } => {
+                            let ray = queue.slot(slot % slots).map(|s| s.ray_id);
+                            if let Some(ray) = ray {
+                                proptest::prop_assert_eq!(queue.terminate(ray), Some(slot % slots));
+                            }
+                        }
+                        Event::Remove { slot } => {
+                            let had = queue.slot(slot % slots).is_some();
+                            proptest::prop_assert_eq!(queue.remove(slot % slots).is_some(), had);
+                        }
+                    }
+                    let expected = defined_choice(&queue);
+                    proptest::prop_assert_eq!(queue.select(), expected, "after {:?}", event);
+                    proptest::prop_assert_eq!(
+                        queue.occupancy(),
+                        queue.slots.iter().filter(|s| s.is_some()).count()
+                    );
                 }
             }
         }
