@@ -289,13 +289,15 @@ pub struct Table {
 
 /// Builds the table of `metric` for the lines of one model. Every field that varies among the
 /// lines, other than the frame, must be a row or the column field: averaging over a swept
-/// hardware field silently would mix configurations.
+/// hardware field silently would mix configurations. The title is `subject` followed by what a
+/// cell holds, counted from the cells themselves ("mean over 4 frames", or "one frame per cell"
+/// when the frame is a row or the column), so it cannot claim a mean that was not taken.
 pub fn build(
     lines: &[&Value],
     metric: Metric,
     row_fields: &[String],
     column_field: &str,
-    title: String,
+    subject: &str,
 ) -> Result<Table> {
     let mut varying = BTreeSet::new();
     let mut first: BTreeMap<String, String> = BTreeMap::new();
@@ -432,6 +434,12 @@ pub fn build(
         .collect::<BTreeSet<_>>()
         .into_iter()
         .collect();
+    let frames_per_cell: BTreeSet<u32> = cells.values().map(|&(_, n, _, _)| n).collect();
+    let held = match (frames_per_cell.first(), frames_per_cell.last()) {
+        (Some(&low), Some(&high)) if high > 1 && low == high => format!("mean over {high} frames"),
+        (Some(&low), Some(&high)) if high > 1 => format!("mean over {low}–{high} frames"),
+        _ => "one frame per cell".to_string(),
+    };
     let mut raised_sram = BTreeSet::new();
     let mut sampled = BTreeSet::new();
     let rows = row_keys
@@ -464,7 +472,7 @@ pub fn build(
         })
         .collect();
     Ok(Table {
-        title,
+        title: format!("{subject}, {held}"),
         row_fields: row_fields.to_vec(),
         column_field: column_field.to_string(),
         rows,
@@ -679,20 +687,13 @@ mod tests {
             (fields(&["dataset", "dataset"]), "mode", "given twice"),
             (fields(&["dataset", "mode"]), "mode", "given twice"),
         ] {
-            let error = build(&refs, Metric::Cycles, &rows, column, "t".into())
+            let error = build(&refs, Metric::Cycles, &rows, column, "t")
                 .err()
                 .unwrap_or_else(|| panic!("{rows:?} / {column} accepted"))
                 .to_string();
             assert!(error.contains(expected), "{rows:?} / {column}: {error}");
         }
-        assert!(build(
-            &refs,
-            Metric::Cycles,
-            &fields(&["dataset"]),
-            "mode",
-            "t".into()
-        )
-        .is_ok());
+        assert!(build(&refs, Metric::Cycles, &fields(&["dataset"]), "mode", "t").is_ok());
     }
 
     /// Two results of one frame in a cell (a sweep folder that mixes configurations the rows
@@ -703,12 +704,12 @@ mod tests {
         let lines = [line("ert", 0, 100, false), line("ert", 1, 120, false)];
         let refs: Vec<&serde_json::Value> = lines.iter().collect();
         let rows = ["dataset".to_string()];
-        assert!(build(&refs, Metric::Cycles, &rows, "mode", "t".into()).is_ok());
+        assert!(build(&refs, Metric::Cycles, &rows, "mode", "t").is_ok());
         let mut again = line("ert", 1, 300, false);
         again["key"] = "ert-1-other-config".into();
         let mixed = [lines[0].clone(), lines[1].clone(), again];
         let refs: Vec<&serde_json::Value> = mixed.iter().collect();
-        let error = build(&refs, Metric::Cycles, &rows, "mode", "t".into())
+        let error = build(&refs, Metric::Cycles, &rows, "mode", "t")
             .err()
             .expect("a frame twice in a cell")
             .to_string();
@@ -730,7 +731,7 @@ mod tests {
         ];
         let lines: Vec<&serde_json::Value> = lines.iter().collect();
         let rows = ["dataset".to_string()];
-        let cycles = build(&lines, Metric::Cycles, &rows, "mode", "t".into()).unwrap();
+        let cycles = build(&lines, Metric::Cycles, &rows, "mode", "t").unwrap();
         let markdown = cycles.markdown();
         assert!(markdown.contains("| 1000 | ≈ 850.0 |"), "{markdown}");
         assert!(markdown.contains("≈ estimated by sampled simulation"));
@@ -739,7 +740,7 @@ mod tests {
         assert_eq!(csv_lines[0], "dataset,none,ERT,sampled_columns");
         assert_eq!(csv_lines[1], "phantom:metaballs:32,1000,850,ERT");
 
-        let steps = build(&lines, Metric::Steps, &rows, "mode", "t".into()).unwrap();
+        let steps = build(&lines, Metric::Steps, &rows, "mode", "t").unwrap();
         assert!(!steps.markdown().contains('≈'));
         assert_eq!(steps.csv().lines().next(), Some("dataset,none,ERT"));
 
@@ -750,7 +751,7 @@ mod tests {
             line["axes"] = serde_json::json!({ "memory.banks": banks });
         }
         let swept: Vec<&serde_json::Value> = swept.iter().collect();
-        let by_banks = build(&swept, Metric::Cycles, &rows, "memory.banks", "t".into()).unwrap();
+        let by_banks = build(&swept, Metric::Cycles, &rows, "memory.banks", "t").unwrap();
         let csv = by_banks.csv();
         let csv_lines: Vec<&str> = csv.lines().collect();
         assert_eq!(

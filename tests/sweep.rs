@@ -532,6 +532,40 @@ fn merge_and_table_refuse_what_would_mislead() {
     );
 }
 
+/// A table's title says what a cell holds: a mean over the frames, or one frame when the frame
+/// is a row or the column (a probe found "mean over 3 frames" over a table of single frames).
+#[test]
+fn table_titles_say_what_a_cell_holds() {
+    let dir = temp_dir("titles");
+    let exp = write_experiment(&dir, &step_only());
+    let runs = dir.join("runs");
+    let runs_ = runs.to_str().unwrap();
+    vizsim_ok(&["sweep", exp.to_str().unwrap(), "--out", runs_]);
+    let title = |rows: &str, columns: &str| {
+        let out = dir.join(format!("t-{columns}"));
+        vizsim_ok(&[
+            "table",
+            runs_,
+            "--metric",
+            "steps",
+            "--rows",
+            rows,
+            "--columns",
+            columns,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let markdown = std::fs::read_to_string(out.join("step-steps.md")).unwrap();
+        markdown.lines().next().unwrap().to_string()
+    };
+    let by_mode = title("dataset,tf,ray_queue.rays", "mode");
+    assert!(by_mode.ends_with(", mean over 3 frames"), "{by_mode}");
+    let by_frame = title("dataset,tf,mode,ray_queue.rays", "frame");
+    assert!(by_frame.ends_with(", one frame per cell"), "{by_frame}");
+    let frame_rows = title("dataset,tf,mode,frame", "ray_queue.rays");
+    assert!(frame_rows.ends_with(", one frame per cell"), "{frame_rows}");
+}
+
 #[test]
 fn shards_merge_to_the_unsharded_sweep() {
     let dir = temp_dir("shards");

@@ -181,18 +181,9 @@ pub fn write_tables(
                 (_, "step") => "step model, published cost 12.5 ns per step",
                 _ => "cycle-accurate model at its clock",
             };
-            let frames: std::collections::BTreeSet<u64> = of_model
-                .iter()
-                .filter_map(|l| l.get("frame").and_then(|f| f.as_u64()))
-                .collect();
-            let title = format!(
-                "{} ({clock}), mean over {} frame{}",
-                metric.label(),
-                frames.len(),
-                if frames.len() == 1 { "" } else { "s" }
-            );
+            let subject = format!("{} ({clock})", metric.label());
             let rows_here: Vec<String> = rows.iter().filter(|r| *r != "model").cloned().collect();
-            let mut table = tables::build(&of_model, metric, &rows_here, columns, title)?;
+            let mut table = tables::build(&of_model, metric, &rows_here, columns, &subject)?;
             table.made_by = Some(made_by.clone());
             let stem = out.join(format!("{model}-{}", metric.file_name()));
             let md = table.markdown();
