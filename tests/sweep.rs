@@ -533,9 +533,11 @@ fn merge_and_table_refuse_what_would_mislead() {
 }
 
 /// A table's title says what a cell holds: a mean over the frames, or one frame when the frame
-/// is a row or the column (a probe found "mean over 3 frames" over a table of single frames).
+/// is a row or the column (a probe found "mean over 3 frames" over a table of single frames);
+/// `model` as a row or the column is refused, naming the option (it was dropped without a word:
+/// each model has its own tables), and nothing is written.
 #[test]
-fn table_titles_say_what_a_cell_holds() {
+fn table_titles_say_what_a_cell_holds_and_model_is_no_row() {
     let dir = temp_dir("titles");
     let exp = write_experiment(&dir, &step_only());
     let runs = dir.join("runs");
@@ -564,6 +566,30 @@ fn table_titles_say_what_a_cell_holds() {
     assert!(by_frame.ends_with(", one frame per cell"), "{by_frame}");
     let frame_rows = title("dataset,tf,mode,frame", "ray_queue.rays");
     assert!(frame_rows.ends_with(", one frame per cell"), "{frame_rows}");
+
+    for (rows, columns, option) in [
+        ("dataset,model,tf,ray_queue.rays", "mode", "--rows"),
+        ("dataset,tf,ray_queue.rays,mode", "model", "--columns"),
+    ] {
+        let out = dir.join("t-model");
+        let result = vizsim(&[
+            "table",
+            runs_,
+            "--rows",
+            rows,
+            "--columns",
+            columns,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert!(!result.status.success(), "{rows} / {columns} accepted");
+        assert!(
+            stderr.contains(&format!("{option}: `model` cannot be a row or the column")),
+            "{rows} / {columns}: {stderr}"
+        );
+        assert!(!out.exists(), "{rows} / {columns} wrote {}", out.display());
+    }
 }
 
 #[test]

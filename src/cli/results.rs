@@ -30,7 +30,8 @@ pub struct TableArgs {
     /// Metrics (one table each per model; default fps, cycles, steps, page-hits).
     #[arg(long, value_enum, value_delimiter = ',')]
     metric: Vec<vizsim::tables::Metric>,
-    /// Row fields, comma-separated: dataset, tf, mode, model, frame or a swept field path.
+    /// Row fields, comma-separated: dataset, tf, mode, frame or a swept field path (not model:
+    /// each model has its own tables).
     #[arg(long, default_value = "dataset,tf", value_delimiter = ',')]
     rows: Vec<String>,
     /// Column field.
@@ -146,6 +147,20 @@ pub fn write_tables(
 ) -> Result<()> {
     use vizsim::tables::{self, Metric};
     let dir = &results.dir;
+    // Each model gets its own tables (their cells are different clocks), so in one of them a
+    // model row or column would hold one value: refused rather than dropped or shown empty.
+    if let Some(option) = [
+        ("--rows", rows.iter().any(|r| r == "model")),
+        ("--columns", columns == "model"),
+    ]
+    .iter()
+    .find_map(|&(option, asked)| asked.then_some(option))
+    {
+        anyhow::bail!(
+            "{option}: `model` cannot be a row or the column: vizsim table writes one table per \
+             model (step-METRIC and cycle-METRIC); --model step|cycle keeps one model's tables"
+        );
+    }
     let lines = results.read()?;
     anyhow::ensure!(!lines.is_empty(), "{}: no results", dir.display());
     let out = out
@@ -182,8 +197,7 @@ pub fn write_tables(
                 _ => "cycle-accurate model at its clock",
             };
             let subject = format!("{} ({clock})", metric.label());
-            let rows_here: Vec<String> = rows.iter().filter(|r| *r != "model").cloned().collect();
-            let mut table = tables::build(&of_model, metric, &rows_here, columns, &subject)?;
+            let mut table = tables::build(&of_model, metric, rows, columns, &subject)?;
             table.made_by = Some(made_by.clone());
             let stem = out.join(format!("{model}-{}", metric.file_name()));
             let md = table.markdown();
