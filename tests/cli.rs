@@ -150,6 +150,38 @@ fn unknown_dataset_lists_what_is_available() {
         &["nonesuch", "phantom:"],
         &png,
     );
+    // The list is every name the resolver takes: the files, the aliases whose file is there
+    // (a probe found the list without the phantoms tsdf and tube and without skull and foot).
+    // The listing reads names only, so empty files stand for the datasets.
+    let data = dir.join("data");
+    std::fs::create_dir_all(data.join("lossy_previews")).unwrap();
+    for file in [
+        "aneurism_8x8x8_uint8.raw",
+        "tooth_103x94x161_uint8.raw",
+        "tooth_140x120x161_uint8.raw",
+        "lossy_previews/foot_8x8x8_uint8.raw",
+    ] {
+        std::fs::write(data.join(file), b"").unwrap();
+    }
+    assert_fails(
+        &[
+            "render",
+            "--data-dir",
+            data.to_str().unwrap(),
+            "--dataset",
+            "nonesuch",
+            "-o",
+            png.to_str().unwrap(),
+        ],
+        &[
+            "aneurism, foot-lossy, tooth_103x94x161, tooth_140x120x161, ",
+            "vessel (alias of aneurism)",
+            "skull (stand-in: tooth_103x94x161)",
+            "foot (stand-in: foot-lossy)",
+            "phantom:sphere|shells|jet|metaballs|cast|tsdf|tube[:SIZE]",
+        ],
+        &png,
+    );
 }
 
 #[test]

@@ -162,16 +162,34 @@ pub fn load(spec: &str, data_dir: Option<&Path>) -> Result<Volume> {
         volume.name = entry.name.clone();
         return Ok(volume);
     }
-    let mut names: Vec<String> = available.into_iter().map(|e| e.name).collect();
-    names.push("phantom:sphere|shells|jet|metaballs|cast[:SIZE]".into());
+    Err(unknown_dataset(spec, &available, data_dir))
+}
+
+/// The error for a name that resolves to nothing, listing every name that does, from what the
+/// resolver itself reads (the folder's files, the aliases whose file is there, the phantom
+/// kinds), so that the list cannot fall behind it.
+fn unknown_dataset(spec: &str, available: &[DatasetEntry], data_dir: Option<&Path>) -> Error {
+    let mut names: Vec<String> = available.iter().map(|e| e.name.clone()).collect();
+    for (alias, name) in ALIASES {
+        if available.iter().any(|e| e.name == *name) {
+            let what = if stand_in_for(alias).is_some() {
+                "stand-in:"
+            } else {
+                "alias of"
+            };
+            names.push(format!("{alias} ({what} {name})"));
+        }
+    }
+    let kinds: Vec<&str> = phantom::PhantomKind::ALL.iter().map(|k| k.name()).collect();
+    names.push(format!("phantom:{}[:SIZE]", kinds.join("|")));
     let where_ = match data_dir {
         Some(d) => format!(" (data directory {})", d.display()),
         None => format!(" (no data directory: give --data-dir or set {DATA_DIR_ENV})"),
     };
-    Err(Error::UnknownDataset {
+    Error::UnknownDataset {
         name: spec.to_string(),
         available: format!("{}{where_}", names.join(", ")),
-    })
+    }
 }
 
 /// The file a dataset name (or alias) picks in `data_dir`, if any (not phantoms or paths).
