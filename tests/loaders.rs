@@ -424,6 +424,29 @@ fn descriptor_needs_dims_unless_file_name_gives_them() {
     );
 }
 
+/// A descriptor whose raw file is not there says so, naming the descriptor and the path (a
+/// probe found "field `dims`: required" for a missing file with a free-form name).
+#[test]
+fn descriptor_with_a_missing_raw_file_names_the_file() {
+    let dir = TempDir::new("descmissing");
+    for (file, more) in [
+        ("scan.raw", ""),
+        ("blob_2x2x2_uint8.raw", ""),
+        ("scan.raw", "dims = [2, 2, 2]\n"),
+    ] {
+        let path = dir.write("d.toml", format!("file = \"{file}\"\n{more}").as_bytes());
+        let error = descriptor::load_descriptor(&path).unwrap_err();
+        let message = error.to_string();
+        assert!(
+            matches!(&error, Error::Config { field, .. } if field == "file")
+                && message.contains("d.toml")
+                && message.contains(&dir.0.join(file).display().to_string())
+                && message.contains("No such file"),
+            "{file} {more}: {message}"
+        );
+    }
+}
+
 #[test]
 fn descriptor_delegates_to_nrrd() {
     let dir = TempDir::new("descnrrd");

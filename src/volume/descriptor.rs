@@ -88,6 +88,9 @@ pub fn load_descriptor(path: &Path) -> Result<Volume> {
             Ok(volume)
         }
         Some("raw") => {
+            // A file that is not there is the error, not the dimensions its name would have
+            // given: otherwise a missing file with a free-form name reads as "dims required".
+            std::fs::metadata(&data_path).map_err(|e| in_file(Error::io(&data_path, e)))?;
             let from_file_name = data_path
                 .file_name()
                 .and_then(|n| n.to_str())
