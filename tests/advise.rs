@@ -529,3 +529,49 @@ fn validation_keeps_ert_whatever_the_structures() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The progress line of each validated pair names its swept values: pairs that differ only in
+/// an axis were printed as identical lines (found by a probe).
+#[test]
+fn validation_progress_names_the_swept_values() {
+    let exe = env!("CARGO_BIN_EXE_vizsim");
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("vizsim-advise-progress-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let experiment = dir.join("axis.toml");
+    std::fs::write(
+        &experiment,
+        "name = \"axis\"\ndatasets = [\"phantom:sphere:32\"]\ntf = [\"class\"]\n\
+         modes = [\"ert\", \"ert+leap8\"]\nmodels = [\"cycle\"]\n\
+         [frames]\norbit = 72\nselect = [0]\nsize = \"24x24\"\n\
+         [axes]\n\"ray_queue.rays\" = [8, 16]\n",
+    )
+    .unwrap();
+    let results = dir.join("runs");
+    let sweep = Command::new(exe)
+        .args(["sweep", experiment.to_str().unwrap(), "--out"])
+        .arg(&results)
+        .output()
+        .unwrap();
+    assert!(
+        sweep.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sweep.stderr)
+    );
+    let out = Command::new(exe)
+        .args(["advise", "--validate"])
+        .arg(&results)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    for rays in [8, 16] {
+        let pair = format!("phantom:sphere:32 class (ray_queue.rays={rays}): advised ");
+        assert!(
+            stderr.lines().filter(|l| l.starts_with(&pair)).count() == 1,
+            "no progress line of {pair:?}: {stderr}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -198,8 +198,14 @@ fn validate(args: &AdviseArgs, dir: &std::path::Path) -> Result<()> {
     let quiet = args.json;
     let report = |row: &advise::ValidationRow| {
         if !quiet {
+            // The swept values tell apart the pairs of one dataset and classification.
+            let axes = if row.axes.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", row.axes)
+            };
             eprintln!(
-                "{} {}: advised {} ({:.2} fps), best {} ({:.2} fps), loss {:.1} %, {:.2} s",
+                "{} {}{axes}: advised {} ({:.2} fps), best {} ({:.2} fps), loss {:.1} %, {:.2} s",
                 row.dataset,
                 row.tf,
                 row.advised,
