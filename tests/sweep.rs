@@ -153,7 +153,14 @@ fn bad_experiments_fail_before_any_run_naming_axis_and_value() {
                 "\"ray_queue.rays\" = [8, 16]",
                 "\"ray_queue.rays\" = [8, 0]",
             ),
-            "value 0",
+            "exp.toml: field `axes.\"ray_queue.rays\"`: value 0: 0 is out of range; allowed 1..=4096",
+        ),
+        (
+            (
+                "\"ray_queue.rays\" = [8, 16]",
+                "\"skip.policy\" = [\"leap-only\", \"sooner\"]",
+            ),
+            "field `axes.\"skip.policy\"`: value \"sooner\": invalid configuration: unknown variant",
         ),
         (("phantom:shells:24", "no-such-dataset"), "no-such-dataset"),
         (("ert+leap4", "ert+leap5"), "leap5"),
@@ -227,8 +234,29 @@ fn bad_experiments_fail_before_any_run_naming_axis_and_value() {
         let stderr = String::from_utf8_lossy(&result.stderr);
         assert!(!result.status.success(), "{edit:?} should fail");
         assert!(stderr.contains(expect), "{edit:?}: {stderr}");
+        // The values came from the experiment file, not from `--set` on the preset (a probe
+        // found axis errors blaming "configs/hardware/vizard2.toml with --set").
+        assert!(!stderr.contains("--set"), "{edit:?}: {stderr}");
         assert!(!out.join("results.jsonl").exists(), "{edit:?}: nothing ran");
     }
+    // A base configuration the experiment names is named with the value it was checked on.
+    let based = TINY
+        .replace(
+            "name = \"ci-tiny\"",
+            "name = \"ci-tiny\"\nconfig = \"configs/hardware/vizard2.toml\"",
+        )
+        .replace("\"ray_queue.rays\" = [8, 16]", "\"ray_queue.rays\" = [0]");
+    let exp = write_experiment(&dir, &based);
+    vizsim_fails(
+        &[
+            "sweep",
+            exp.to_str().unwrap(),
+            "--out",
+            dir.join("out").to_str().unwrap(),
+        ],
+        "value 0: 0 is out of range; allowed 1..=4096 (with the base configuration \
+         configs/hardware/vizard2.toml)",
+    );
 }
 
 #[test]

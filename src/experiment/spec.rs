@@ -489,6 +489,24 @@ pub fn expand_plan(plan: Plan) -> Result<Expansion> {
     })
 }
 
+/// What is wrong with the base configuration once an experiment's values are set in it, without
+/// the source the configuration names (`BASE with --set FIELD=VALUE`): the values came from the
+/// experiment file, not from `--set`, and the caller's error names the file and the axis. The
+/// field is named unless it is `axis` itself; the base only when the experiment gives one (the
+/// check may involve its other fields).
+fn setting_problem(error: Error, axis: &str, base: Option<&Path>) -> String {
+    let problem = match error {
+        Error::Config { field, message, .. } if field == axis => message,
+        Error::Config { field, message, .. } => format!("field `{field}`: {message}"),
+        Error::Format { message, .. } => message.trim_end().to_string(),
+        other => other.to_string(),
+    };
+    match base {
+        Some(base) => format!("{problem} (with the base configuration {})", base.display()),
+        None => problem,
+    }
+}
+
 /// Validates an experiment and loads its datasets: everything a sweep checks before it writes
 /// anything. The runs themselves come from `Plan::for_each_run`, one at a time.
 pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
@@ -780,7 +798,13 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
     for (path, values) in &axes {
         for value in values {
             HardwareConfig::from_toml_str(&base_text, &base_name, &[format!("{path}={value}")])
-                .map_err(|e| bad(&format!("axes.\"{path}\""), format!("value {value}: {e}")))?;
+                .map_err(|e| {
+                    let problem = setting_problem(e, path, experiment.config.as_deref());
+                    bad(
+                        &format!("axes.\"{path}\""),
+                        format!("value {value}: {problem}"),
+                    )
+                })?;
         }
     }
 
@@ -1104,10 +1128,15 @@ impl Plan {
                                             &overrides,
                                         )
                                         .map_err(|e| {
+                                            let problem = setting_problem(
+                                                e,
+                                                "",
+                                                self.experiment.config.as_deref(),
+                                            );
                                             bad(
                                                 "axes",
                                                 format!(
-                                                    "the combination {}: {e}",
+                                                    "the combination {}: {problem}",
                                                     combo
                                                         .iter()
                                                         .map(|(p, v)| format!("{p}={v}"))
