@@ -134,6 +134,22 @@ fn excludes_that_match_runs_are_accepted() {
     let e = expand(sequence, "dyn", None).unwrap();
     assert_eq!(e.runs.len(), 2, "the runs without a map are excluded");
     assert!(e.runs.iter().all(|r| r.run.hardware.occupancy.subcube == 8));
+    // Numbers match by value however they are written (a probe found `8.0` refused as
+    // matching no run of an axis written 8).
+    let float_exclude = format!("{TINY}\n[[exclude]]\n\"ray_queue.rays\" = 8.0\n");
+    let e = expand(&float_exclude, "f", None).unwrap();
+    assert!(!e.runs.is_empty());
+    assert!(e.runs.iter().all(|r| r.run.hardware.ray_queue.rays == 16));
+    let float_axis = TINY.replace(
+        "\"ray_queue.rays\" = [8, 16]",
+        "\"clock.step_time_ns\" = [12.5, 10.0]",
+    ) + "\n[[exclude]]\n\"clock.step_time_ns\" = 10\n";
+    let e = expand(&float_axis, "g", None).unwrap();
+    assert!(!e.runs.is_empty());
+    assert!(e
+        .runs
+        .iter()
+        .all(|r| r.run.hardware.clock.step_time_ns == 12.5));
 }
 
 #[test]

@@ -450,6 +450,22 @@ fn toml_to_json(value: &toml::Value) -> serde_json::Value {
     serde_json::to_value(value).unwrap_or(serde_json::Value::Null)
 }
 
+/// Whether an `exclude` value names an axis value: numbers by value, so that `8.0` matches an
+/// axis written `8` and `10` one written `10.0` (they set the field alike); anything else as
+/// written.
+fn same_axis_value(a: &toml::Value, b: &toml::Value) -> bool {
+    use toml::Value::{Float, Integer};
+    match (a, b) {
+        // Exact: a float equals an integer only when it is that whole number (no rounding of
+        // large integers through f64).
+        (Integer(i), Float(f)) | (Float(f), Integer(i)) => {
+            f.fract() == 0.0 && f.abs() < 9.0e18 && *f as i64 == *i
+        }
+        (Float(x), Float(y)) => x == y,
+        _ => toml_to_json(a) == toml_to_json(b),
+    }
+}
+
 /// SRAM bits of a sub-cube map of a volume (as `OccupancyMap::storage_bits`).
 fn map_bits(dims: [usize; 3], subcube: usize, hierarchy: bool) -> u64 {
     let cells = dims.map(|d| d.div_ceil(subcube));
@@ -902,9 +918,8 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
                 ),
                 path => {
                     let values = &axes.iter().find(|(p, _)| p == path).expect("known").1;
-                    let wanted = toml_to_json(v);
                     (
-                        values.iter().any(|x| toml_to_json(x) == wanted),
+                        values.iter().any(|x| same_axis_value(x, v)),
                         format!("`axes.\"{path}\"`"),
                     )
                 }
@@ -1227,7 +1242,9 @@ impl Plan {
                                             .and_then(|m| Mode::parse(m).ok())
                                             .is_some_and(|m| m == *mode),
                                         "model" => v.as_str() == Some(model.name()),
-                                        path => axes_json.get(path) == Some(&toml_to_json(v)),
+                                        path => combo
+                                            .iter()
+                                            .any(|(p, x)| p == path && same_axis_value(x, v)),
                                     })
                                 });
                                 if excluded {
