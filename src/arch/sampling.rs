@@ -415,11 +415,20 @@ where
         let first_last_work = work(0, &first.0) + work(count - 1, &last.0);
         let x_middle = (issued_steps + misses(0..total) as f64 - first_last_work).max(0.0);
         let middle_units = (count - 2) as f64;
-        for (c, total) in estimate.0.iter_mut().enumerate().take(width) {
-            *total += ratio(&sampled, c) * x_middle;
+        if sampled.len() == count - 2 {
+            // Every middle unit measured (rate 1): their counters add up to the frame's
+            // exactly, where the ratio would scale them by the issued steps, which with ERT
+            // are estimated from the discarded share.
+            for (c, total) in estimate.0.iter_mut().enumerate().take(width) {
+                *total += sampled.iter().map(|o| o.y[c]).sum::<f64>();
+            }
+        } else {
+            for (c, total) in estimate.0.iter_mut().enumerate().take(width) {
+                *total += ratio(&sampled, c) * x_middle;
+            }
+            ci95 = ratio_ci95(&sampled, middle_units) * x_middle
+                / sampled.iter().map(|o| o.weight * o.x).sum::<f64>().max(1.0);
         }
-        ci95 = ratio_ci95(&sampled, middle_units) * x_middle
-            / sampled.iter().map(|o| o.weight * o.x).sum::<f64>().max(1.0);
         unsimulated = (1.0 - sampled.len() as f64 / middle_units).max(0.0);
     }
     let round = |x: f64| x.max(0.0).round() as u64;
