@@ -184,6 +184,37 @@ fn unknown_dataset_lists_what_is_available() {
     );
 }
 
+/// A dataset given as a path names a file: a missing one is "no such file" (with the path
+/// read), a folder is refused as one, not reported as an unknown dataset name.
+#[test]
+fn a_missing_volume_file_is_named_as_a_file() {
+    let dir = scratch("missing-file");
+    let png = dir.join("out.png");
+    let missing = dir.join("gone_8x8x8_uint8.raw");
+    assert_fails(
+        &[
+            "render",
+            "--dataset",
+            missing.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+        ],
+        &["no such file", missing.to_str().unwrap()],
+        &png,
+    );
+    for relative in ["gone_8x8x8_uint8.raw", "volumes/gone"] {
+        let out = vizsim(&["info", relative]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success());
+        assert!(stderr.contains("no such file"), "{relative}: {stderr}");
+        assert!(!stderr.contains("available:"), "{relative}: {stderr}");
+    }
+    let out = vizsim(&["info", dir.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("is a folder"), "{stderr}");
+}
+
 #[test]
 fn bad_image_sizes_fail_cleanly() {
     let dir = scratch("size");

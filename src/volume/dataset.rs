@@ -162,6 +162,25 @@ pub fn load(spec: &str, data_dir: Option<&Path>) -> Result<Volume> {
         volume.name = entry.name.clone();
         return Ok(volume);
     }
+    // A path (a folder in it, or a volume file's extension) names a file, not a dataset: say
+    // that the file is missing rather than list the dataset names.
+    let volume_file = [".raw", ".nrrd", ".nhdr", ".toml"]
+        .iter()
+        .any(|ext| spec.ends_with(ext));
+    if as_path.is_dir() {
+        return Err(Error::Invalid(format!(
+            "dataset `{spec}` is a folder; give a volume file (.raw, .nrrd, .nhdr or a .toml descriptor) or a dataset name"
+        )));
+    }
+    if volume_file || spec.contains(std::path::MAIN_SEPARATOR) || spec.contains('/') {
+        let full = std::env::current_dir()
+            .map(|cwd| cwd.join(as_path))
+            .unwrap_or_else(|_| as_path.to_path_buf());
+        return Err(Error::Invalid(format!(
+            "dataset `{spec}`: no such file ({})",
+            full.display()
+        )));
+    }
     Err(unknown_dataset(spec, &available, data_dir))
 }
 
