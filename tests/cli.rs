@@ -1008,3 +1008,60 @@ fn a_stand_in_note_leaves_json_output_parseable() {
         "the note is still given"
     );
 }
+
+/// `compare` checks every output path before it compares, and writes its outputs together or
+/// not at all (found by probing: `--diff afile/d.png`, under a regular file, printed the result
+/// and wrote the --json before failing; so did `--diff` naming a folder).
+#[test]
+fn compare_with_one_bad_output_writes_none() {
+    let dir = scratch("compare-outputs");
+    let a = dir.join("a.png");
+    succeeds(&[
+        "render",
+        "--dataset",
+        "phantom:sphere:32",
+        "--size",
+        "8x8",
+        "-o",
+        a.to_str().unwrap(),
+    ]);
+    let a_ = a.to_str().unwrap();
+    let json = dir.join("cj.json");
+    let afile = dir.join("afile");
+    std::fs::write(&afile, "a regular file").unwrap();
+    let under_a_file = afile.join("d.png");
+    let folder = dir.join("out");
+    std::fs::create_dir(&folder).unwrap();
+    for (diff, needle) in [
+        (under_a_file.to_str().unwrap(), "afile/d.png"),
+        (folder.to_str().unwrap(), "is a folder"),
+    ] {
+        let args = [
+            "compare",
+            a_,
+            a_,
+            "--json",
+            json.to_str().unwrap(),
+            "--diff",
+            diff,
+        ];
+        assert_fails(&args, &[needle], &json);
+        let out = vizsim(&args);
+        assert!(
+            !String::from_utf8_lossy(&out.stdout).contains("max |error|"),
+            "{diff}: the result was printed before the failure"
+        );
+    }
+    // Both written when both can be.
+    let diff = dir.join("d.png");
+    succeeds(&[
+        "compare",
+        a_,
+        a_,
+        "--json",
+        json.to_str().unwrap(),
+        "--diff",
+        diff.to_str().unwrap(),
+    ]);
+    assert!(json.exists() && diff.exists());
+}

@@ -25,6 +25,11 @@ pub fn run(args: CompareArgs) -> Result<()> {
         .filter_map(|(option, path)| Some((option, path?)))
         .collect();
     vizsim::output::check_distinct(&[a.as_path(), b.as_path()], &outputs)?;
+    // Every output path is checked before the images are read, and the outputs are written
+    // together or not at all: a bad --diff must not leave the --json of a run that failed.
+    for (_, path) in &outputs {
+        vizsim::output::check_writable(path)?;
+    }
     let (wa, ha, pa) = compare::load_rgba(a)?;
     let (wb, hb, pb) = compare::load_rgba(b)?;
     anyhow::ensure!(
@@ -34,6 +39,22 @@ pub fn run(args: CompareArgs) -> Result<()> {
         b.display()
     );
     let result = compare::compare(&pa, &pb, wa, ha)?;
+    vizsim::output::all_or_none(|| -> Result<()> {
+        if let Some(path) = json {
+            vizsim::output::write_json(path, &result)?;
+        }
+        if let Some(path) = diff {
+            let frame = vizsim::render::Frame {
+                width: wa,
+                height: ha,
+                pixels: compare::difference_image(&pa, &pb, 16),
+                rays: Vec::new(),
+            };
+            frame.write_png(path)?;
+        }
+        Ok(())
+    })?;
+    // Printed after the outputs are in place (a failed print must not leave their temporaries).
     println!(
         "max |error| R {} G {} B {} A {}, mean {:.4}, PSNR {:.2} dB, {} pixels differ by more than 1 LSB{}",
         result.max_abs_error[0],
@@ -45,17 +66,5 @@ pub fn run(args: CompareArgs) -> Result<()> {
         result.pixels_over_1_lsb,
         if result.identical { " (identical)" } else { "" }
     );
-    if let Some(path) = json {
-        vizsim::output::write_json(path, &result)?;
-    }
-    if let Some(path) = diff {
-        let frame = vizsim::render::Frame {
-            width: wa,
-            height: ha,
-            pixels: compare::difference_image(&pa, &pb, 16),
-            rays: Vec::new(),
-        };
-        frame.write_png(path)?;
-    }
     Ok(())
 }
