@@ -1065,3 +1065,59 @@ fn compare_with_one_bad_output_writes_none() {
     ]);
     assert!(json.exists() && diff.exists());
 }
+
+/// `verify-skip` counts its cases before it starts: a run of days is refused with the count,
+/// the estimated time, the options that set it and `--max-cases` (found by probing:
+/// `--increment-bits 20` ran for what would have been about 55 hours without a word).
+#[test]
+fn verify_skip_refuses_a_run_of_days_up_front() {
+    let start = std::time::Instant::now();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args(["verify-skip", "--increment-bits", "20"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Before the bound the run did not end: it is stopped here rather than hang the test.
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > std::time::Duration::from_secs(20) {
+            child.kill().unwrap();
+            panic!("verify-skip --increment-bits 20 still running after 20 s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+    for needle in [
+        "35,184,372,088,832 cases",
+        "--increment-bits 20",
+        "would take about",
+        "--max-cases",
+    ] {
+        assert!(stderr.contains(needle), "lacks {needle:?}: {stderr}");
+    }
+    // The bound is the user's: a small run over a small bound is refused, under it runs.
+    let small = [
+        "verify-skip",
+        "--increment-bits",
+        "6",
+        "--subcube",
+        "8",
+        "--reciprocal-bits",
+        "6",
+    ];
+    let mut over = small.to_vec();
+    over.extend(["--max-cases", "65535"]);
+    assert_fails(
+        &over,
+        &["65,536 cases", "--max-cases 65,535"],
+        &scratch("verify-none").join("x"),
+    );
+    let mut at = small.to_vec();
+    at.extend(["--max-cases", "65536"]);
+    succeeds(&at);
+}
