@@ -502,6 +502,7 @@ pub struct Measurements {
     /// Step model: steps × `clock.step_time_ns`; cycle model: cycles at `clock.frequency_mhz`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub frame_time_ns: Option<f64>,
+    /// 1e9 / `frame_time_ns`; absent when the frame time is 0 (a frame of no steps).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fps: Option<f64>,
     /// SDRAM: reads that found their row open / had to open it.
@@ -746,7 +747,10 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         (Model::Cycle, None, None) => None,
     };
     m.frame_time_ns = frame_time_ns;
-    m.fps = frame_time_ns.map(|ns| 1e9 / ns.max(1e-9));
+    // A frame of no steps (no ray meets the volume or the clip box) takes no time in the step
+    // model: it has no frame rate, and no number stands in for one (a sentinel such as 1e18
+    // would dominate any mean or chart of the results). Tables leave such a cell empty.
+    m.fps = frame_time_ns.filter(|&ns| ns > 0.0).map(|ns| 1e9 / ns);
     if let Some(s) = &pipeline {
         m.cycles = Some(s.cycles);
         // The pipeline's own counts (they equal the frame's: checked on every run).

@@ -1121,3 +1121,38 @@ fn verify_skip_refuses_a_run_of_days_up_front() {
     at.extend(["--max-cases", "65536"]);
     succeeds(&at);
 }
+
+/// A fixed-model frame of no steps (nothing in the clip box) has no frame rate: the JSON has
+/// no `fps` and the line says why (found by probing: it printed `inf fps` and wrote
+/// `"fps": 1e+18`, a stand-in that would dominate any mean or chart).
+#[test]
+fn a_frame_of_no_steps_has_no_frame_rate() {
+    let dir = scratch("no-steps");
+    let (png, json) = (dir.join("e.png"), dir.join("e.json"));
+    let out = succeeds(&[
+        "render",
+        "--dataset",
+        "phantom:sphere:32",
+        "--size",
+        "8x8",
+        "--model",
+        "fixed",
+        "--set",
+        "clip.box=[[100.0,100.0,100.0],[200.0,200.0,200.0]]",
+        "-o",
+        png.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("0 steps") && stdout.contains("no frame rate"),
+        "{stdout}"
+    );
+    assert!(!stdout.contains("inf fps"), "{stdout}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(report["steps"], 0, "{report}");
+    assert_eq!(report["frame_time_ns"], 0.0);
+    assert!(report.get("fps").is_none(), "fps {}", report["fps"]);
+}

@@ -93,7 +93,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
         m.leaps,
         m.rays_terminated_early,
         m.frame_time_ns
-            .map(|t| format!(", {} steps = {:.3} ms/frame = {:.1} fps", m.steps, t / 1e6, 1e9 / t))
+            .map(|t| format!(
+                ", {} steps = {:.3} ms/frame{}",
+                m.steps,
+                t / 1e6,
+                m.fps.map_or(", no frame rate (no ray took a step)".to_string(), |fps| format!(" = {fps:.1} fps"))
+            ))
             .unwrap_or_default(),
         report.wall_seconds,
         report.samples_per_second / 1e6,
