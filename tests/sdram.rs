@@ -186,6 +186,26 @@ fn write_timing_is_validated_and_optional_in_files() {
         err.contains("sdram.t_rtw") && err.contains("cl + 1"),
         "{err}"
     );
+    // A CAS latency at the fields' bound leaves t_rtw (> cl, <= 64) no value: the error names
+    // cl and a range that exists (it said `sdram.t_rtw` ... "allowed cl + 1 (65)..=64").
+    let err = HardwareConfig::load(None, &["sdram.cl=64".into()])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("field `sdram.cl`") && err.contains("sdram.t_rtw") && err.contains("1..=63"),
+        "{err}"
+    );
+    assert!(!err.contains("(65)"), "{err}");
+    // Below the bound, t_rtw is still what is too small, and the message says which cl.
+    let err = HardwareConfig::load(None, &["sdram.cl=40".into()])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("field `sdram.t_rtw`")
+            && err.contains("sdram.cl = 40")
+            && err.contains("(41)..=64"),
+        "{err}"
+    );
     for field in ["memory.host_link_bits=0", "memory.host_link_mhz=0.0"] {
         let err = HardwareConfig::load(None, &[field.into()])
             .unwrap_err()

@@ -72,6 +72,9 @@ fn is_default_t_rtw(v: &u32) -> bool {
     *v == default_t_rtw()
 }
 
+/// The largest value of every SDRAM timing field, in cycles.
+const MAX_TIMING_CYCLES: u32 = 64;
+
 impl SdramTiming {
     /// The write-timing parameters in cycles, by configuration name (`sdram.<name>`).
     pub fn write_parameters(&self) -> [(&'static str, u32); 3] {
@@ -111,21 +114,35 @@ impl SdramTiming {
             ("sdram.t_wtr", self.t_wtr),
             ("sdram.t_rtw", self.t_rtw),
         ] {
-            if !(1..=64).contains(&value) {
+            if !(1..=MAX_TIMING_CYCLES).contains(&value) {
                 return Err(Error::config(
                     source,
                     field,
-                    format!("{value} is out of range; allowed 1..=64 cycles"),
+                    format!("{value} is out of range; allowed 1..={MAX_TIMING_CYCLES} cycles"),
                 ));
             }
+        }
+        // t_rtw must exceed cl and is at most MAX_TIMING_CYCLES: a cl at that bound leaves t_rtw
+        // no value, and the error then belongs to cl (not to t_rtw with an empty range).
+        if self.cl >= MAX_TIMING_CYCLES {
+            return Err(Error::config(
+                source,
+                "sdram.cl",
+                format!(
+                    "{} leaves no room for the READ-to-WRITE turnaround sdram.t_rtw, which must \
+                     exceed cl and is at most {MAX_TIMING_CYCLES} cycles; allowed 1..={}",
+                    self.cl,
+                    MAX_TIMING_CYCLES - 1
+                ),
+            ));
         }
         if self.t_rtw <= self.cl {
             return Err(Error::config(
                 source,
                 "sdram.t_rtw",
                 format!(
-                    "{} would drive write data while the READ's data (CL {} cycles after it) is \
-                     on the bus; allowed cl + 1 ({})..=64",
+                    "{} would drive write data while the READ's data (sdram.cl = {} cycles after \
+                     it) is on the bus; allowed cl + 1 ({})..={MAX_TIMING_CYCLES} (or lower sdram.cl)",
                     self.t_rtw,
                     self.cl,
                     self.cl + 1
