@@ -706,3 +706,40 @@ fn jumping_over_dead_cycles_equals_ticking_with_blocking() {
         assert_eq!(ideal(true), ideal(false), "ideal, latency {latency}");
     }
 }
+
+/// When most blocks are active, their borders cost more rows than the inactive blocks save:
+/// the summary says how much more, not a negative saving (found by probing: "-225.0 % saved").
+#[test]
+fn the_summary_says_how_much_more_memory_blocking_takes_when_it_saves_none() {
+    let png = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("vizsim-blocking-more-{}.png", std::process::id()));
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args([
+            "sim",
+            "--dataset",
+            "phantom:sphere:32",
+            "--size",
+            "8x8",
+            "--set",
+            "blocking.enabled=true",
+            "--set",
+            "blocking.block_size=8",
+            "-o",
+            png.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let _ = std::fs::remove_file(&png);
+    // 13 rows (106,496 words) against 4 (32,768 words) without blocking.
+    assert!(
+        stdout.contains("(4 without blocking: 32768 words, 225.0 % more)"),
+        "{stdout}"
+    );
+    assert!(!stdout.contains("% saved"), "{stdout}");
+}

@@ -417,7 +417,7 @@ pub fn blocking_text(m: &vizsim::run::Measurements) -> String {
     };
     let mut text = format!(
         "blocking: {} of {} blocks of {}³ active; memory {} rows per bank = {} words ({} without \
-         blocking: {} words, {:.1} % saved); table {} bits on chip, lookup {} cycles",
+         blocking: {} words, {}); table {} bits on chip, lookup {} cycles",
         b.active_blocks,
         b.blocks,
         b.block_size,
@@ -425,7 +425,7 @@ pub fn blocking_text(m: &vizsim::run::Measurements) -> String {
         b.memory_words_blocked,
         b.rows_unblocked,
         b.memory_words_unblocked,
-        100.0 * (1.0 - b.memory_words_blocked as f64 / b.memory_words_unblocked.max(1) as f64),
+        memory_change_text(b.memory_words_blocked, b.memory_words_unblocked),
         b.table_sram_bits,
         b.lookup_latency
     );
@@ -433,6 +433,18 @@ pub fn blocking_text(m: &vizsim::run::Measurements) -> String {
         text += &format!("; {zero} samples in inactive blocks read as zero (no memory read)");
     }
     text
+}
+
+/// What blocking does to the memory, as a positive percentage of the unblocked words: "x % saved",
+/// or "x % more" when the blocks' borders cost more than the inactive blocks save (most blocks
+/// active; a negative saving read as a misprint).
+fn memory_change_text(words_blocked: u64, words_unblocked: u64) -> String {
+    let ratio = words_blocked as f64 / words_unblocked.max(1) as f64;
+    if words_blocked > words_unblocked {
+        format!("{:.1} % more", 100.0 * (ratio - 1.0))
+    } else {
+        format!("{:.1} % saved", 100.0 * (1.0 - ratio))
+    }
 }
 
 /// The command line as typed, for the provenance line of generated reports: `vizsim` and the
