@@ -1,7 +1,8 @@
-//! Reports regenerate: the small committed reports (precision on fuel and neghip, the quick
-//! experiment's tables) are made again here, by the command each names, and must equal the
-//! committed copies byte for byte. A stale report (after a transfer function, a model or a
-//! table format changed) fails this test; regenerate it with the command it names.
+//! Reports regenerate: the small committed reports (precision on fuel and neghip with their
+//! charts, the quick experiment's tables) are made again here, by the command each names, and
+//! must equal the committed copies byte for byte. A stale report (after a transfer function, a
+//! model, a table format or the chart layout changed) fails this test; regenerate it with the
+//! command it names.
 
 mod common;
 
@@ -57,22 +58,31 @@ fn assert_same_files(committed: &Path, fresh: &Path, extensions: &[&str], only_s
     );
     assert_eq!(old, new, "the files of {}", committed.display());
     for name in &old {
-        let a = std::fs::read_to_string(committed.join(name)).unwrap();
-        let b = std::fs::read_to_string(fresh.join(name)).unwrap();
-        if a != b {
-            let line = a
-                .lines()
-                .zip(b.lines())
-                .position(|(x, y)| x != y)
-                .unwrap_or(a.lines().count().min(b.lines().count()));
-            panic!(
-                "{} is stale (first difference at line {}): regenerate it with the command it names\n committed: {:?}\n now:       {:?}",
-                committed.join(name).display(),
-                line + 1,
-                a.lines().nth(line),
-                b.lines().nth(line)
-            );
+        let a = std::fs::read(committed.join(name)).unwrap();
+        let b = std::fs::read(fresh.join(name)).unwrap();
+        if a == b {
+            continue;
         }
+        // Text files say where they differ; a PNG only that it does. Charts are drawn with the
+        // system's sans-serif font (DejaVu Sans where the committed ones were made).
+        let (Ok(a), Ok(b)) = (String::from_utf8(a), String::from_utf8(b)) else {
+            panic!(
+                "{} is stale (the image differs): regenerate it with the command its report names",
+                committed.join(name).display()
+            );
+        };
+        let line = a
+            .lines()
+            .zip(b.lines())
+            .position(|(x, y)| x != y)
+            .unwrap_or(a.lines().count().min(b.lines().count()));
+        panic!(
+            "{} is stale (first difference at line {}): regenerate it with the command it (or its report) names\n committed: {:?}\n now:       {:?}",
+            committed.join(name).display(),
+            line + 1,
+            a.lines().nth(line),
+            b.lines().nth(line)
+        );
     }
 }
 
@@ -89,7 +99,7 @@ fn precision_reports_of_fuel_and_neghip_are_current() {
     assert_same_files(
         &repo().join("reports/precision"),
         &cwd.join("reports/precision"),
-        &[".md", ".csv", ".json"],
+        &[".md", ".csv", ".json", ".svg", ".png"],
         &["fuel", "neghip"],
     );
 }
