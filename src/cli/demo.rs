@@ -213,9 +213,9 @@ fn dynamic_sequence(out: &Path, hardware: &HardwareConfig) -> Result<()> {
             view.frame.clone(),
             vec![
                 format!("step {}, t = {t}", s.step),
-                format!("update {} cycles", thousands(s.update_cycles)),
-                format!("map {} cycles", thousands(s.map_cycles)),
-                format!("render {} cycles", thousands(s.render_cycles)),
+                format!("update {} cycles", super::thousands(s.update_cycles.into())),
+                format!("map {} cycles", super::thousands(s.map_cycles.into())),
+                format!("render {} cycles", super::thousands(s.render_cycles.into())),
             ],
         ));
         Ok(())
@@ -232,19 +232,6 @@ fn dynamic_sequence(out: &Path, hardware: &HardwareConfig) -> Result<()> {
         sheet.display()
     );
     Ok(())
-}
-
-/// 1234567 -> "1,234,567".
-fn thousands(n: u64) -> String {
-    let digits = n.to_string();
-    let mut out = String::new();
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i).is_multiple_of(3) {
-            out.push(',');
-        }
-        out.push(c);
-    }
-    out
 }
 
 /// The quick experiment (configs/experiments/quick.toml, embedded): sweep, tables and charts.

@@ -435,6 +435,19 @@ pub fn blocking_text(m: &vizsim::run::Measurements) -> String {
     text
 }
 
+/// 1234567 -> "1,234,567".
+pub fn thousands(n: u128) -> String {
+    let digits = n.to_string();
+    let mut out = String::new();
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
 /// What blocking does to the memory, as a positive percentage of the unblocked words: "x % saved",
 /// or "x % more" when the blocks' borders cost more than the inactive blocks save (most blocks
 /// active; a negative saving read as a misprint).

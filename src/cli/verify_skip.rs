@@ -57,19 +57,6 @@ fn duration_text(seconds: f64) -> String {
     }
 }
 
-/// A count with thousands separators.
-fn grouped(n: u128) -> String {
-    let digits = n.to_string();
-    let mut text = String::new();
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i) % 3 == 0 {
-            text.push(',');
-        }
-        text.push(c);
-    }
-    text
-}
-
 #[derive(clap::ValueEnum, Clone, Copy)]
 enum RoundingArg {
     Down,
@@ -145,20 +132,20 @@ pub fn run(args: VerifySkipArgs) -> Result<()> {
          directions, for --subcube {}) would take about {estimate} on one core, over --max-cases \
          {}; use fewer --position-bits or --increment-bits (each bit halves the count), or raise \
          --max-cases to run it anyway",
-        grouped(cases),
+        super::thousands(cases),
         widths.inc_frac_bits,
         subcubes
             .iter()
             .map(usize::to_string)
             .collect::<Vec<_>>()
             .join(","),
-        grouped(args.max_cases.into())
+        super::thousands(args.max_cases.into())
     );
     // The cost is said before a run that takes a while (on stderr: --json output stays JSON).
     if cases as f64 > 10.0 * CASES_PER_SECOND {
         eprintln!(
             "verify-skip: {} cases, about {estimate} on one core",
-            grouped(cases)
+            super::thousands(cases)
         );
     }
     let mut reports = Vec::new();
