@@ -92,10 +92,63 @@ pub struct DynamicReport {
     pub partial: Option<PartialReport>,
 }
 
+/// Who asks the update model: `vizsim update` measures the map alone (its bits, at the
+/// sub-cube size); a sequence also renders every step with it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UpdateUse {
+    Measure,
+    Sequence,
+}
+
+/// Refuses a configuration the update model does not model (docs/dynamic.md, "Not modelled
+/// during updates"): every structure other than the occupancy map that a run builds from the
+/// volume when it is prepared. The update engine keeps only the map's min/max table, so with
+/// any of them a step would render with a structure rebuilt for free and charge no cycles for
+/// it. The one list of such refusals, for `measure`, `run_sequence` and the experiments.
+pub fn check_modelled(hw: &HardwareConfig, used: UpdateUse) -> Result<()> {
+    let refuse = |setting: String, why: &str| {
+        Err(Error::Invalid(format!(
+            "{setting}: {why}; not modelled during updates (docs/dynamic.md, \"Not modelled \
+             during updates\")"
+        )))
+    };
+    if !hw.occupancy.structure.is_map() {
+        return refuse(
+            format!(
+                "occupancy.structure = {}",
+                serde_json::to_string(&hw.occupancy.structure).unwrap_or_default()
+            ),
+            "the update engine keeps an occupancy map, not a distance volume or leap values in \
+             the voxel words, which would have to be recomputed around every changed voxel",
+        );
+    }
+    if hw.bricks.size > 0 {
+        return refuse(
+            format!("bricks.size = {} (--bricks)", hw.bricks.size),
+            "the brick flags that start and end each ray are not kept up to date as the volume \
+             changes",
+        );
+    }
+    if hw.blocking.enabled {
+        return refuse(
+            "blocking.enabled = true".into(),
+            "the blocking table is not kept up to date (a block that becomes active needs a \
+             free slot and its voxels written, one that empties frees its slot)",
+        );
+    }
+    if used == UpdateUse::Measure && hw.occupancy.hierarchy {
+        return refuse(
+            "occupancy.hierarchy = true (--hierarchy)".into(),
+            "update measures the map's bits without the hierarchy's byte layout",
+        );
+    }
+    Ok(())
+}
+
 /// Measures a download of `volume`, a scan, the costs of a transfer-function change, and with
 /// `next` a partial update to it (changed `brick`³ bricks) under both map policies. The maps are
 /// checked against `OccupancyMap::build`; an error if one is not exact (or, widened, not
-/// conservative).
+/// conservative), or for a configuration the update model does not model (`check_modelled`).
 pub fn measure(
     hw: &HardwareConfig,
     volume: &Volume,
@@ -103,6 +156,7 @@ pub fn measure(
     subcube: usize,
     next: Option<(&Volume, usize)>,
 ) -> Result<DynamicReport> {
+    check_modelled(hw, UpdateUse::Measure)?;
     let log2 = check_subcube_size(subcube, volume.dims)?;
     let visible = |lo: u16, hi: u16| table.any_visible(lo, hi);
     let mut engine = UpdateEngine::new(hw, volume.dims, volume.bits, log2, 0)?;
@@ -576,8 +630,9 @@ pub struct StepView<'a> {
 /// `occupancy.subcube` is the map's sub-cube size): per step the update engine writes what
 /// changed, the map follows as `options.map` says, and the frame is rendered through
 /// `run::prepare`/`run::execute` from the volume in the SDRAM with the map the chip holds.
-/// Errors: the memory image differs from the step's volume, the map is not conservative, or
-/// (`verify`) a frame differs from the non-leaping frame.
+/// Errors: a configuration the update model does not model (`check_modelled`), the memory
+/// image differs from the step's volume, the map is not conservative, or (`verify`) a frame
+/// differs from the non-leaping frame.
 pub fn run_sequence(
     run: &RunDescription,
     source: &str,
@@ -591,6 +646,7 @@ pub fn run_sequence(
         )));
     }
     let hw = &run.hardware;
+    check_modelled(hw, UpdateUse::Sequence)?;
     let leaping_run = || {
         let mut r = run.clone();
         if options.map == MapMode::None {
@@ -601,10 +657,9 @@ pub fn run_sequence(
     let render_run = leaping_run();
     if options.map != MapMode::None && !matches!(render_run.leaping(), Leaping::Occupancy { .. }) {
         return Err(Error::Invalid(format!(
-            "--map {}: the run must leap with an occupancy map (a sub-cube size, and \
-             occupancy.structure = \"map\", not {}); or --map none",
-            options.map.name(),
-            serde_json::to_string(&render_run.hardware.occupancy.structure).unwrap_or_default()
+            "--map {}: the run must leap with an occupancy map (give its sub-cube size); or \
+             --map none",
+            options.map.name()
         )));
     }
     let plain_run = {

@@ -486,3 +486,132 @@ fn a_single_step_has_no_rate_after_the_first_and_no_map_no_subcube() {
     assert!(two["steady_fps"].as_f64().unwrap() > 0.0);
     assert!(two["subcube"].is_null(), "{}", two["subcube"]);
 }
+
+/// Structures a run builds from the volume when it is prepared, other than the occupancy map,
+/// are not kept up to date by the update engine: `update` and `sequence` refuse them (and
+/// `update` the hierarchy, which it does not measure), naming the field and the reason, before
+/// printing anything; an experiment leaves such sequence runs out with that reason. Before,
+/// blocking, bricks and leap values were accepted and the figures silently ignored them or
+/// rendered with them for free (found by probing).
+#[test]
+fn configurations_the_update_model_does_not_model_are_refused() {
+    let sequence = |extra: &[&str]| {
+        let mut args = vec![
+            "sequence",
+            "--source",
+            "phantom:metaballs:32",
+            "--steps",
+            "2",
+            "--size",
+            "16x16",
+        ];
+        args.extend_from_slice(extra);
+        args.iter().map(|s| s.to_string()).collect::<Vec<_>>()
+    };
+    let update = |extra: &[&str]| {
+        let mut args = vec!["update", "phantom:metaballs:32", "--subcube", "4"];
+        args.extend_from_slice(extra);
+        args.iter().map(|s| s.to_string()).collect::<Vec<_>>()
+    };
+    let blocking = [
+        "--set",
+        "blocking.enabled=true",
+        "--set",
+        "blocking.block_size=16",
+    ];
+    let leap_values = ["--set", "occupancy.structure=leap-values"];
+    let cases = [
+        (
+            sequence(&[&["--subcube", "4"][..], &blocking].concat()),
+            "blocking.enabled",
+        ),
+        (
+            sequence(&[&["--map", "none"][..], &leap_values].concat()),
+            "occupancy.structure",
+        ),
+        (
+            sequence(&["--subcube", "4", "--bricks", "8"]),
+            "bricks.size",
+        ),
+        (
+            sequence(&["--subcube", "4", "--set", "occupancy.structure=distance"]),
+            "occupancy.structure",
+        ),
+        (update(&blocking), "blocking.enabled"),
+        (update(&leap_values), "occupancy.structure"),
+        (update(&["--bricks", "8"]), "bricks.size"),
+        (update(&["--set", "bricks.size=8"]), "bricks.size"),
+        (update(&["--hierarchy"]), "occupancy.hierarchy"),
+        (
+            update(&["--set", "occupancy.hierarchy=true"]),
+            "occupancy.hierarchy",
+        ),
+    ];
+    for (args, field) in cases {
+        let out = vizsim(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+        for needle in [field, "not modelled during updates", "docs/dynamic.md"] {
+            assert!(
+                stderr.contains(needle),
+                "{args:?}: lacks {needle:?}: {stderr}"
+            );
+        }
+        assert!(out.stdout.is_empty(), "{args:?} printed before refusing");
+    }
+    // The hierarchy is the map's byte layout: a sequence models it (its bits are written one
+    // per cycle either way).
+    let out = vizsim(
+        &sequence(&["--subcube", "4", "--hierarchy"])
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>(),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    // The library refuses too, whatever the map mode.
+    let mut run = describe(4, OccupancyKind::Class, "class");
+    run.hardware.blocking.enabled = true;
+    let e = run_sequence(
+        &run,
+        "phantom:tsdf:32",
+        &options(2, 1.0, MapMode::None),
+        |_| Ok(()),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("blocking.enabled"), "{e}");
+
+    // An experiment (its modes take only maps) leaves the sequence runs with blocking out,
+    // with the reason.
+    let experiment = r#"
+name = "unmodelled"
+datasets = ["phantom:metaballs:32"]
+tf = ["class"]
+modes = ["ert+leap8"]
+models = ["cycle"]
+[frames]
+orbit = 1
+size = "16x16"
+[sequence]
+steps = 2
+map = ["update"]
+[axes]
+"blocking.enabled" = [false, true]
+"#;
+    let e = vizsim::experiment::spec::expand(experiment, "unmodelled", None).unwrap();
+    assert_eq!(e.runs.len(), 2, "only the steps without blocking run");
+    assert!(
+        e.skipped
+            .iter()
+            .any(|s| s.reason.contains("blocking.enabled")
+                && s.reason.contains("not modelled during updates")),
+        "{:?}",
+        e.skipped.iter().map(|s| &s.reason).collect::<Vec<_>>()
+    );
+}

@@ -52,6 +52,8 @@ pub struct SequenceArgs {
 
 pub fn run(args: SequenceArgs) -> Result<()> {
     let config = args.hardware.load(&[])?;
+    // Before anything is printed: a configuration the update model does not model.
+    vizsim::dynamic::check_modelled(&config, vizsim::dynamic::UpdateUse::Sequence)?;
     anyhow::ensure!(
         args.map == MapMode::None || args.hardware.subcube.is_some(),
         "--map {}: give the map's sub-cube size with --subcube (or --map none)",

@@ -38,14 +38,13 @@ pub fn run(args: UpdateArgs) -> Result<()> {
         "--brick 0: the brick edge must be at least 1"
     );
     anyhow::ensure!(
-        !args.hardware.hierarchy
-            && args.hardware.occupancy.is_none()
-            && args.hardware.bricks.is_none(),
-        "update measures the occupancy map at --subcube (its cycles do not depend on the map's \
-         kind), without the hierarchy and bricks: --hierarchy, --occupancy and --bricks do not \
-         apply"
+        args.hardware.occupancy.is_none(),
+        "--occupancy: update measures both maps ('0' and class; its cycles do not depend on the \
+         map's kind), so it does not apply"
     );
     let config = args.hardware.load(&[])?;
+    // Before the volumes load: a configuration the update model does not model.
+    vizsim::dynamic::check_modelled(&config, vizsim::dynamic::UpdateUse::Measure)?;
     let subcube = args
         .hardware
         .subcube

@@ -1200,6 +1200,21 @@ impl Plan {
                                     config.iso.enabled = true;
                                     config.iso.refinement_steps = n;
                                 }
+                                // A sequence run the update model does not model is left out
+                                // with the reason the sequence itself would refuse it.
+                                if map.is_some() {
+                                    if let Err(e) = crate::dynamic::check_modelled(
+                                        &config,
+                                        crate::dynamic::UpdateUse::Sequence,
+                                    ) {
+                                        skip(Skipped {
+                                            dataset: name.clone(),
+                                            mode: mode.name(),
+                                            reason: e.to_string(),
+                                        });
+                                        continue;
+                                    }
+                                }
                                 let mut fits = true;
                                 if mode.subcube > 0 {
                                     if mode.subcube > *dims.iter().max().unwrap_or(&0) {
