@@ -26,6 +26,13 @@ pub fn changed_bricks(before: &Volume, after: &Volume, brick: usize) -> Result<V
             after.dims, before.dims
         )));
     }
+    if before.bits != after.bits {
+        return Err(Error::Invalid(format!(
+            "the next volume has {}-bit voxels, the current one {}-bit: a partial update needs \
+             equal bit depths",
+            after.bits, before.bits
+        )));
+    }
     if brick == 0 {
         return Err(Error::Invalid("brick size 0: must be at least 1".into()));
     }

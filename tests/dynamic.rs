@@ -606,7 +606,7 @@ fn the_update_command_prints_the_costs_and_rejects_bad_input() {
                 "--next",
                 "phantom:sphere:16",
             ],
-            "equal extents",
+            "--next phantom:sphere:16: [16, 16, 16] voxels of 8 bits, but phantom:sphere:32",
         ),
         (vec!["update", "phantom:sphere:32"], "--subcube"),
         // Flags that would change nothing (found by probing: the output was identical).
@@ -695,4 +695,55 @@ fn a_sixteen_bit_volume_costs_two_link_bytes_per_voxel_and_keeps_exact_maps() {
             &format!("{mapping:?} scan"),
         );
     }
+}
+
+/// `--next` with the same extent but 16-bit samples was caught only by the update engine, as
+/// "update region 0: value 5072 exceeds the 8-bit volume's 255", naming neither the option nor
+/// the file (found by probing). Now it is caught when the file is loaded.
+#[test]
+fn a_next_volume_of_another_bit_depth_is_refused_naming_the_option_and_file() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("vizsim-next-bits-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let eight = dir.join("vol_8x8x8_uint8.raw");
+    let sixteen = dir.join("other_8x8x8_uint16.raw");
+    std::fs::write(
+        &eight,
+        (0..512).map(|i| (i % 200) as u8).collect::<Vec<_>>(),
+    )
+    .unwrap();
+    let values: Vec<u8> = (0..512u16)
+        .flat_map(|i| (i * 37 % 6000).to_le_bytes())
+        .collect();
+    std::fs::write(&sixteen, values).unwrap();
+    let out = vizsim(&[
+        "update",
+        eight.to_str().unwrap(),
+        "--subcube",
+        "2",
+        "--tf",
+        "zero",
+        "--next",
+        sixteen.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "accepted: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    for needle in [
+        format!("--next {}", sixteen.display()),
+        "16 bits".to_string(),
+        "bit depth".to_string(),
+    ] {
+        assert!(err.contains(&needle), "lacks {needle:?}: {err}");
+    }
+    assert!(out.stdout.is_empty(), "printed before refusing");
+    // The library says so too, for callers other than the command.
+    let a = Volume::new("a", [4, 4, 4], [1.0; 3], 8, vec![1; 64]).unwrap();
+    let b = Volume::new("b", [4, 4, 4], [1.0; 3], 16, vec![300; 64]).unwrap();
+    let e = vizsim::dynamic::changed_bricks(&a, &b, 2)
+        .expect_err("another bit depth accepted")
+        .to_string();
+    assert!(e.contains("bit depths"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
 }

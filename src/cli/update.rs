@@ -58,7 +58,22 @@ pub fn run(args: UpdateArgs) -> Result<()> {
         1.0,
     );
     let next = match &args.next {
-        Some(spec) => Some(args.data.load(spec).context("--next")?),
+        Some(spec) => {
+            let next = args.data.load(spec).context("--next")?;
+            // Here, naming the option and both volumes: later the update engine would only find
+            // a voxel too large for the first volume's bits, or the extents unequal.
+            anyhow::ensure!(
+                next.dims == volume.dims && next.bits == volume.bits,
+                "--next {spec}: {:?} voxels of {} bits, but {} is {:?} voxels of {} bits: a \
+                 partial update needs the same extent and bit depth",
+                next.dims,
+                next.bits,
+                args.dataset,
+                volume.dims,
+                volume.bits
+            );
+            Some(next)
+        }
         None => None,
     };
     let report = vizsim::dynamic::measure(
