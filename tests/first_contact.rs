@@ -261,3 +261,80 @@ fn tables_name_swept_columns_print_every_metric_and_format_columns_one_way() {
         }
     }
 }
+
+/// The leaping flags shared by the run commands are listed only where they apply, with the
+/// meaning they have there. Before, `occupancy`, `precision` and `update` listed `--subcube`,
+/// `--hierarchy`, `--occupancy` and `--bricks` with the render text and then refused them, and
+/// `update --help` said of `--subcube` "without it, no leaping" where it is required.
+#[test]
+fn help_lists_the_leaping_flags_only_where_they_apply() {
+    let help = |command: &str| text(&vizsim(&[command, "--help"])).0;
+    let lists = |help: &str, flag: &str| {
+        help.lines()
+            .any(|l| l.trim_start().starts_with(&format!("{flag} ")) || l.trim() == flag)
+    };
+    let flags = ["--subcube", "--hierarchy", "--occupancy", "--bricks"];
+    for command in ["occupancy", "precision"] {
+        let help = help(command);
+        for flag in flags {
+            assert!(!lists(&help, flag), "{command} --help lists {flag}: {help}");
+        }
+    }
+    let update = help("update");
+    for flag in ["--hierarchy", "--occupancy", "--bricks"] {
+        assert!(
+            !lists(&update, flag),
+            "update --help lists {flag}: {update}"
+        );
+    }
+    // The `--subcube` entry (its last mention: update's usage line names it too) up to the
+    // next option, whitespace collapsed: clap wraps long descriptions at the terminal's width.
+    let subcube_line = |help: &str| {
+        let flat = help.split_whitespace().collect::<Vec<_>>().join(" ");
+        let entry = flat
+            .rsplit("--subcube <SUBCUBE>")
+            .next()
+            .unwrap_or_default();
+        entry.split(" --").next().unwrap_or_default().to_string()
+    };
+    let line = subcube_line(&update);
+    assert!(
+        line.contains("required") && !line.contains("no leaping"),
+        "{line}"
+    );
+    assert!(
+        update.contains("Usage: vizsim update [OPTIONS] --subcube"),
+        "{update}"
+    );
+    let sequence = help("sequence");
+    assert!(!lists(&sequence, "--bricks"), "{sequence}");
+    let line = subcube_line(&sequence);
+    assert!(
+        line.contains("required") && !line.contains("no leaping"),
+        "{line}"
+    );
+    // Where they apply, all four keep the one shared text.
+    for command in ["render", "sim"] {
+        let help = help(command);
+        for flag in flags {
+            assert!(lists(&help, flag), "{command} --help lacks {flag}: {help}");
+        }
+        assert!(
+            subcube_line(&help).contains("without it, no leaping"),
+            "{help}"
+        );
+    }
+    // A hidden flag given anyway is still refused with the reason, not taken silently.
+    let out = vizsim(&["occupancy", "phantom:sphere:16", "--bricks", "8"]);
+    let (_, stderr) = text(&out);
+    assert!(
+        !out.status.success() && stderr.contains("do not apply"),
+        "{stderr}"
+    );
+    let out = vizsim(&["update", "phantom:sphere:16"]);
+    let (_, stderr) = text(&out);
+    assert!(
+        !out.status.success() && stderr.contains("--subcube"),
+        "{stderr}"
+    );
+}

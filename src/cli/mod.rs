@@ -54,6 +54,12 @@ enum Command {
     /// Print a dataset's dimensions, spacing, value histogram and occupied percentage.
     Info(info::InfoArgs),
     /// Occupancy maps per sub-cube size: storage bits, SRAM fit, skippable sub-cubes ('0', class).
+    #[command(
+        mut_arg("subcube", not_listed),
+        mut_arg("hierarchy", not_listed),
+        mut_arg("occupancy", not_listed),
+        mut_arg("bricks", not_listed)
+    )]
     Occupancy(occupancy::OccupancyArgs),
     /// Compare two images: max error per channel, PSNR, pixels differing by more than 1 LSB.
     Compare(compare::CompareArgs),
@@ -62,6 +68,12 @@ enum Command {
     VerifySkip(verify_skip::VerifySkipArgs),
     /// Sweep fixed-point widths one at a time against the float reference (image error) and the
     /// skip widths against the step count; writes tables and plots.
+    #[command(
+        mut_arg("subcube", not_listed),
+        mut_arg("hierarchy", not_listed),
+        mut_arg("occupancy", not_listed),
+        mut_arg("bricks", not_listed)
+    )]
     Precision(precision::PrecisionArgs),
     /// Run an experiment file (configs/experiments/): every run in parallel, results appended
     /// to OUT/results.jsonl as they finish; re-running resumes.
@@ -82,10 +94,30 @@ enum Command {
     Demo(demo::DemoArgs),
     /// Volume updates: a download over the host link with the maps built on the way, a scan
     /// pass, a transfer-function change and a partial update, in cycles (docs/dynamic.md).
+    #[command(
+        mut_arg("subcube", |arg| arg
+            .required(true)
+            .help("Edge of the occupancy maps' sub-cubes (2..64), required: the maps whose costs are measured")),
+        mut_arg("hierarchy", not_listed),
+        mut_arg("occupancy", not_listed),
+        mut_arg("bricks", not_listed)
+    )]
     Update(update::UpdateArgs),
     /// The frame loop of a dynamic sequence (metaballs, TSDF fusion, a folder of time steps):
     /// per step update, map and render cycles, and the frames per second (docs/dynamic.md).
+    #[command(
+        mut_arg("subcube", |arg| arg.help(
+            "Edge of the occupancy map's sub-cubes (2..64), required unless --map none"
+        )),
+        mut_arg("bricks", not_listed)
+    )]
     Sequence(sequence::SequenceArgs),
+}
+
+/// Hides a leaping flag of the shared `HardwareArgs` from a command's help where it does not
+/// apply: the command refuses it (with why) when given, so listing it would only mislead.
+fn not_listed(arg: clap::Arg) -> clap::Arg {
+    arg.hide(true)
 }
 
 /// Most worker threads `--threads` takes: a huge count made the thread pool try to start
