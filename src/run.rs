@@ -646,6 +646,12 @@ pub fn skippable_subcubes_percent(prepared: &Prepared) -> Option<f64> {
 }
 
 /// Runs one frame of a prepared run: the one function every command calls.
+/// Frames per second of a frame taking `frame_time_ns`; none for a frame of no time (no number
+/// stands in for one: a sentinel would dominate any mean or chart of the results).
+pub fn fps_of(frame_time_ns: f64) -> Option<f64> {
+    (frame_time_ns > 0.0).then(|| 1e9 / frame_time_ns)
+}
+
 pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Result<RunReport> {
     let camera = run.camera(prepared.volume)?;
     let config = &run.hardware;
@@ -750,7 +756,7 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
     // A frame of no steps (no ray meets the volume or the clip box) takes no time in the step
     // model: it has no frame rate, and no number stands in for one (a sentinel such as 1e18
     // would dominate any mean or chart of the results). Tables leave such a cell empty.
-    m.fps = frame_time_ns.filter(|&ns| ns > 0.0).map(|ns| 1e9 / ns);
+    m.fps = frame_time_ns.and_then(fps_of);
     if let Some(s) = &pipeline {
         m.cycles = Some(s.cycles);
         // The pipeline's own counts (they equal the frame's: checked on every run).

@@ -301,6 +301,12 @@ pub struct VerifyParams {
 }
 
 impl VerifyParams {
+    /// The cases `verify_skip` enumerates: every position offset in the sub-cube for every
+    /// increment magnitude, in both directions.
+    pub fn cases(&self) -> u128 {
+        (1u128 << (self.cube_log2 + self.widths.pos_frac_bits)) * u128::from(self.max_increment) * 2
+    }
+
     /// Parameters enumerating increments up to one voxel (`2^inc_frac_bits` LSBs).
     pub fn new(widths: SkipWidths, cube_log2: u32, rounding: ReciprocalRounding) -> VerifyParams {
         VerifyParams {
@@ -396,7 +402,7 @@ pub fn verify_exhaustive(params: &VerifyParams) -> Result<VerifyReport, SkipConf
             }
         }
     }
-    let cases = (mask + 1) * params.max_increment * 2;
+    let cases = params.cases() as u64;
     Ok(VerifyReport {
         params: *params,
         cases,

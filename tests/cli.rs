@@ -213,6 +213,32 @@ fn a_missing_volume_file_is_named_as_a_file() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(stderr.contains("is a folder"), "{stderr}");
+    // Whatever the data folder (here a stale one), and a path that is there but is not a
+    // regular file is not reported missing (a review found a FIFO called "no such file").
+    let out = Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args(["info", missing.to_str().unwrap()])
+        .env("VIZSIM_DATA", dir.join("no-data-here"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("no such file"),
+        "{stderr}"
+    );
+    #[cfg(unix)]
+    {
+        let fifo = dir.join("pipe_8x8x8_uint8.raw");
+        assert!(Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success());
+        let out = vizsim(&["info", fifo.to_str().unwrap()]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{stderr}");
+        assert!(stderr.contains("not a regular file"), "{stderr}");
+        assert!(!stderr.contains("no such file"), "{stderr}");
+    }
 }
 
 #[test]

@@ -324,12 +324,32 @@ fn help_lists_the_leaping_flags_only_where_they_apply() {
             "{help}"
         );
     }
-    // A hidden flag given anyway is still refused with the reason, not taken silently.
-    let out = vizsim(&["occupancy", "phantom:sphere:16", "--bricks", "8"]);
-    let (_, stderr) = text(&out);
+    // A hidden flag given anyway is still refused with the reason, not taken silently (a
+    // review found precision making its report with --bricks).
+    let scratch = std::env::temp_dir().join(format!("vizsim-precision-{}", std::process::id()));
+    for command in [
+        &["occupancy", "phantom:sphere:16", "--bricks", "8"][..],
+        &[
+            "precision",
+            "--dataset",
+            "phantom:sphere:16",
+            "--bricks",
+            "8",
+            "--out",
+            scratch.to_str().unwrap(),
+        ],
+    ] {
+        let out = vizsim(command);
+        let (_, stderr) = text(&out);
+        assert!(
+            !out.status.success() && stderr.contains("do not apply"),
+            "{command:?}: {stderr}"
+        );
+    }
     assert!(
-        !out.status.success() && stderr.contains("do not apply"),
-        "{stderr}"
+        !scratch.exists(),
+        "a refused precision run wrote {}",
+        scratch.display()
     );
     let out = vizsim(&["update", "phantom:sphere:16"]);
     let (_, stderr) = text(&out);

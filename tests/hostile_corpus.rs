@@ -1092,9 +1092,9 @@ fn hostile_experiments_results_images_and_numbers() {
     ];
     for (file, input) in results {
         let readers: &[&str] = match (file, input) {
-            // Tables read any JSON object per line; only merge and sweeps need string keys.
+            // Every reader wants a string key (tables read results as a resumed sweep does).
             (_, Input::Text(t)) if t.starts_with("{\"key\":5}") => {
-                &["merge", "sweep", "sweep --dry-run"]
+                &["merge", "table", "plot", "sweep", "sweep --dry-run"]
             }
             ("results.jsonl", _) => &["merge", "table", "plot", "sweep", "sweep --dry-run"],
             ("timing.jsonl", _) => &["merge", "sweep"],

@@ -18,7 +18,8 @@
 //! sampled windows (steps, plus rays that miss the volume) times the middle units' work, known
 //! from the functional model. The 95 % interval comes from the residuals between strata
 //! (successive differences or simple random sampling, the larger), plus an allowance for the
-//! warm-up's bias.
+//! warm-up's bias. When every middle unit is measured (rate 1, or a frame of few units) their
+//! counters are summed instead: the frame's exactly, with no interval.
 
 use std::ops::Range;
 

@@ -53,10 +53,14 @@ pub fn run(args: PrecisionArgs) -> Result<()> {
     // Its points set the leaping themselves: a leaping flag would only mislabel the report.
     let occupancy = &base.hardware.occupancy;
     anyhow::ensure!(
-        !args.hardware.asks_for_leaping() && occupancy.subcube == 0 && !occupancy.hierarchy,
+        !args.hardware.asks_for_leaping()
+            && args.hardware.bricks.is_none()
+            && occupancy.subcube == 0
+            && !occupancy.hierarchy
+            && base.hardware.bricks.is_off(),
         "precision runs its image points without leaping and its cost points with 8³ class-map \
-         leaping: --subcube, --hierarchy, --occupancy (or occupancy.subcube and \
-         occupancy.hierarchy in the configuration) do not apply"
+         leaping: --subcube, --hierarchy, --occupancy, --bricks (or occupancy.subcube, \
+         occupancy.hierarchy and bricks.size in the configuration) do not apply"
     );
     println!("{}", args.hardware.resolved_line(&base.hardware));
     let volume = args.data.load(&args.dataset)?;

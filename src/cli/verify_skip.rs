@@ -118,12 +118,7 @@ pub fn run(args: VerifySkipArgs) -> Result<()> {
         runs.push((s, params));
     }
     // The run enumerates every offset in the sub-cube for every increment, both directions.
-    let cases: u128 = runs
-        .iter()
-        .map(|(_, p)| {
-            (1u128 << (p.cube_log2 + p.widths.pos_frac_bits)) * u128::from(p.max_increment) * 2
-        })
-        .sum();
+    let cases: u128 = runs.iter().map(|(_, p)| p.cases()).sum();
     let estimate = duration_text(cases as f64 / CASES_PER_SECOND);
     anyhow::ensure!(
         cases <= u128::from(args.max_cases),

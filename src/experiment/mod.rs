@@ -145,10 +145,13 @@ fn step_line(run: &RunSpec, view: &StepView, experiment: &str, clock_mhz: f64) -
         ("total_cycles", json!(s.total_cycles)),
         ("stale_subcubes", json!(s.stale_subcubes)),
         ("frame_time_ns", json!(total_ns)),
-        ("fps", json!(1e9 / total_ns.max(1e-9))),
     ] {
         obj.insert(field.into(), value);
     }
+    match crate::run::fps_of(total_ns) {
+        Some(fps) => obj.insert("fps".into(), json!(fps)),
+        None => obj.remove("fps"),
+    };
     Ok(line)
 }
 

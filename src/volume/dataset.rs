@@ -135,12 +135,20 @@ pub fn load(spec: &str, data_dir: Option<&Path>) -> Result<Volume> {
     if as_path.is_file() {
         return load_file(as_path);
     }
+    // A path (a folder in it, or a volume file's extension) names a file, not a dataset.
+    let path_like = [".raw", ".nrrd", ".nhdr", ".toml"]
+        .iter()
+        .any(|ext| spec.ends_with(ext))
+        || spec.contains(std::path::MAIN_SEPARATOR)
+        || spec.contains('/');
     let name = ALIASES
         .iter()
         .find(|(alias, _)| *alias == spec)
         .map(|(_, name)| *name)
         .unwrap_or(spec);
     let available = match data_dir {
+        // A missing file named by its path is that, whatever the data folder.
+        Some(dir) if !dir.is_dir() && path_like => return Err(not_a_volume_file(spec)),
         // A folder that is not there, named with where it came from (a stale environment).
         Some(dir) if !dir.is_dir() => {
             let from_env = std::env::var_os(DATA_DIR_ENV).is_some_and(|v| Path::new(&v) == dir);
@@ -154,7 +162,10 @@ pub fn load(spec: &str, data_dir: Option<&Path>) -> Result<Volume> {
                 }
             )));
         }
-        Some(dir) => scan(dir)?,
+        Some(dir) => match scan(dir) {
+            Err(_) if path_like => return Err(not_a_volume_file(spec)),
+            scanned => scanned?,
+        },
         None => Vec::new(),
     };
     if let Some(entry) = available.iter().find(|e| e.name == name) {
@@ -162,26 +173,38 @@ pub fn load(spec: &str, data_dir: Option<&Path>) -> Result<Volume> {
         volume.name = entry.name.clone();
         return Ok(volume);
     }
-    // A path (a folder in it, or a volume file's extension) names a file, not a dataset: say
-    // that the file is missing rather than list the dataset names.
-    let volume_file = [".raw", ".nrrd", ".nhdr", ".toml"]
-        .iter()
-        .any(|ext| spec.ends_with(ext));
-    if as_path.is_dir() {
-        return Err(Error::Invalid(format!(
-            "dataset `{spec}` is a folder; give a volume file (.raw, .nrrd, .nhdr or a .toml descriptor) or a dataset name"
-        )));
-    }
-    if volume_file || spec.contains(std::path::MAIN_SEPARATOR) || spec.contains('/') {
-        let full = std::env::current_dir()
-            .map(|cwd| cwd.join(as_path))
-            .unwrap_or_else(|_| as_path.to_path_buf());
-        return Err(Error::Invalid(format!(
-            "dataset `{spec}`: no such file ({})",
-            full.display()
-        )));
+    if path_like || as_path.is_dir() {
+        return Err(not_a_volume_file(spec));
     }
     Err(unknown_dataset(spec, &available, data_dir))
+}
+
+/// The error for a dataset given as a path that is not a regular volume file: missing (with
+/// the path read), a folder, or something else the loader explains (a FIFO, a device, a link
+/// loop, a folder that cannot be read), rather than a list of dataset names.
+fn not_a_volume_file(spec: &str) -> Error {
+    let path = Path::new(spec);
+    match std::fs::metadata(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            let full = std::env::current_dir()
+                .map(|cwd| cwd.join(path))
+                .unwrap_or_else(|_| path.to_path_buf());
+            Error::Invalid(format!(
+                "dataset `{spec}`: no such file ({})",
+                full.display()
+            ))
+        }
+        Err(e) => Error::io(path, e),
+        Ok(m) if m.is_dir() => Error::Invalid(format!(
+            "dataset `{spec}` is a folder; give a volume file (.raw, .nrrd, .nhdr or a .toml \
+             descriptor) or a dataset name"
+        )),
+        // Not a regular file (`is_file` said so): the loader's own check names what it is.
+        Ok(_) => match load_file(path) {
+            Err(e) => e,
+            Ok(_) => Error::Invalid(format!("dataset `{spec}`: not a regular file")),
+        },
+    }
 }
 
 /// The error for a name that resolves to nothing, listing every name that does, from what the
