@@ -645,13 +645,13 @@ pub fn skippable_subcubes_percent(prepared: &Prepared) -> Option<f64> {
     Some(100.0 * map.empty_subcubes() as f64 / map.subcubes().max(1) as f64)
 }
 
-/// Runs one frame of a prepared run: the one function every command calls.
 /// Frames per second of a frame taking `frame_time_ns`; none for a frame of no time (no number
 /// stands in for one: a sentinel would dominate any mean or chart of the results).
 pub fn fps_of(frame_time_ns: f64) -> Option<f64> {
     (frame_time_ns > 0.0).then(|| 1e9 / frame_time_ns)
 }
 
+/// Runs one frame of a prepared run: the one function every command calls.
 pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Result<RunReport> {
     let camera = run.camera(prepared.volume)?;
     let config = &run.hardware;

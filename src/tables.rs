@@ -11,16 +11,15 @@ use serde_json::Value;
 use crate::error::{Error, Result};
 
 /// Reads a results file (one JSON object per line) as a sweep's resume reads it
-/// (`experiment::store::read_lines`): a torn last line (a sweep killed while writing) is left
-/// out; any other malformed line is an error naming the file and line.
-pub fn read_results(path: &Path) -> Result<Vec<Value>> {
+/// (`experiment::store::read_lines`): a torn last line (a sweep killed while writing, or one
+/// still writing) is left out, and the second value says so; any other malformed line is an
+/// error naming the file and line.
+pub fn read_results(path: &Path) -> Result<(Vec<Value>, bool)> {
     if let Err(e) = std::fs::symlink_metadata(path) {
         return Err(Error::io(path, e));
     }
-    Ok(crate::experiment::store::read_lines(path)?
-        .into_iter()
-        .map(|(line, _)| line)
-        .collect())
+    let (lines, torn) = crate::experiment::store::read_lines_and_torn(path)?;
+    Ok((lines.into_iter().map(|(line, _)| line).collect(), torn))
 }
 
 /// What a cell shows.
@@ -648,8 +647,17 @@ mod tests {
         let good = "{\"key\":\"a\",\"cycles\":1}\n{\"key\":\"b\",\"cycles\":2}\n";
         for torn in ["{\"key\":\"c\",\"cyc", "{\"key\":\"c\",\"cyc\n"] {
             std::fs::write(&path, format!("{good}{torn}")).unwrap();
-            assert_eq!(read_results(&path).unwrap().len(), 2, "{torn:?}");
+            let (lines, left_out) = read_results(&path).unwrap();
+            assert_eq!(lines.len(), 2, "{torn:?}");
+            assert!(left_out, "{torn:?}: the torn line is reported");
         }
+        std::fs::write(&path, good).unwrap();
+        let (lines, left_out) = read_results(&path).unwrap();
+        assert_eq!(
+            (lines.len(), left_out),
+            (2, false),
+            "a complete file leaves nothing out"
+        );
         std::fs::write(&path, format!("{{\"key\":\"c\",\"cyc\n{good}")).unwrap();
         let error = read_results(&path).unwrap_err().to_string();
         assert!(error.contains("line 1"), "{error}");

@@ -422,6 +422,32 @@ fn the_sequence_command_reports_every_step_and_rejects_bad_input() {
         text.status.success() && stdout.contains("frames/s"),
         "{stdout}"
     );
+    // The sub-cube size set in the configuration rather than by the flag is the same run (it
+    // was refused as missing).
+    let by = |size: &[&str]| {
+        let mut all = vec![
+            "sequence",
+            "--source",
+            "phantom:metaballs:32",
+            "--steps",
+            "2",
+            "--size",
+            "32x32",
+            "--json",
+        ];
+        all.extend(size);
+        let out = vizsim(&all);
+        assert!(
+            out.status.success(),
+            "{size:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        out.stdout
+    };
+    assert_eq!(
+        by(&["--subcube", "4"]),
+        by(&["--set", "occupancy.subcube=4"])
+    );
     for (args, needle) in [
         (vec!["--steps", "0", "--subcube", "4"], "zero time steps"),
         (vec!["--steps", "2"], "--subcube"),

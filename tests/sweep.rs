@@ -345,6 +345,19 @@ fn a_killed_sweep_resumes_to_the_same_results() {
     let mut text = std::fs::read_to_string(&results).unwrap();
     text.push_str("{\"key\":\"deadbeef\",\"dataset\":\"phan");
     std::fs::write(&results, text).unwrap();
+    // A table of the folder now leaves the torn line out and says so (it was silent).
+    let tables = dir.join("killed-tables");
+    let table = vizsim(&[
+        "table",
+        killed.to_str().unwrap(),
+        "--out",
+        tables.to_str().unwrap(),
+    ]);
+    let said = String::from_utf8_lossy(&table.stderr);
+    assert!(
+        table.status.success() && said.contains("last line is incomplete"),
+        "{said}"
+    );
     // And a full disk that tore a timing line, after which appends went on, and a kill
     // between a result and its time (one result without a time).
     let timing = killed.join("timing.jsonl");

@@ -91,7 +91,16 @@ impl ResultsArgs {
                 "--model {m}: expected `step` or `cycle`"
             );
         }
-        let mut lines = vizsim::tables::read_results(&self.dir.join("results.jsonl"))?;
+        let path = self.dir.join("results.jsonl");
+        let (mut lines, torn) = vizsim::tables::read_results(&path)?;
+        if torn {
+            // Said, not silent: a sweep killed mid-line (or one still running) lost that run.
+            eprintln!(
+                "note: {}: the last line is incomplete (a sweep killed while writing it, or one \
+                 still running) and is left out; running the sweep again redoes that run",
+                path.display()
+            );
+        }
         // A requested dataset the results do not hold (a typo) is named, not ignored.
         if let Some(absent) = self.dataset.iter().find(|d| {
             !lines

@@ -55,8 +55,10 @@ pub fn run(args: SequenceArgs) -> Result<()> {
     // Before anything is printed: a configuration the update model does not model.
     vizsim::dynamic::check_modelled(&config, vizsim::dynamic::UpdateUse::Sequence)?;
     anyhow::ensure!(
-        args.map == MapMode::None || args.hardware.subcube.is_some(),
-        "--map {}: give the map's sub-cube size with --subcube (or --map none)",
+        // The size as configured (--subcube, --set or the file), not only the flag.
+        args.map == MapMode::None || config.occupancy.subcube > 0,
+        "--map {}: give the map's sub-cube size with --subcube (or occupancy.subcube by --set \
+         or --config; or --map none)",
         args.map.name()
     );
     let run = RunDescription {

@@ -172,13 +172,13 @@ pub fn run(args: SimArgs) -> Result<()> {
         };
         writeln!(
             said,
-        "{}: {} cycles = {:.3} ms/frame = {:.1} fps at {} MHz; {}, {} ray selection, ERT {}; \
+        "{}: {} cycles = {:.3} ms/frame = {} at {} MHz; {}, {} ray selection, ERT {}; \
          {} steps ({} samples of which {} leap samples, {} leaps), {} discarded after ERT{memory_line}; \
          stalls: queue empty {}, skip busy {}, memory {}, buffer full {}{}; {:.1} M cycles/s simulated",
         report.volume,
         cycles,
         frame_time_ns / 1e6,
-        1e9 / frame_time_ns.max(1e-9),
+        m.fps.map_or("no frame rate".to_string(), |fps| format!("{fps:.1} fps")),
         config.clock.frequency_mhz,
         leaping_text(&report.leaping),
         serde_json::to_value(report.ray_selection)?.as_str().unwrap_or("?"),

@@ -33,6 +33,12 @@ pub fn read_lines(path: &Path) -> Result<Vec<(Value, String)>> {
     Ok(scan(path)?.0)
 }
 
+/// As `read_lines`, and whether a torn last line was left out (for a reader that says so).
+pub fn read_lines_and_torn(path: &Path) -> Result<(Vec<(Value, String)>, bool)> {
+    let (lines, _, torn) = scan(path)?;
+    Ok((lines, torn))
+}
+
 /// The keys of the complete lines of a results file (missing file = none), read line by line
 /// so that only the keys are held (the dry run). A torn last line is left out; a malformed line
 /// elsewhere is an error, as in `read_lines`.
