@@ -727,6 +727,9 @@ pub struct Validation {
     pub rows: Vec<ValidationRow>,
     /// Pairs whose runs are not all in the folder yet (`dataset tf: N of M runs`).
     pub incomplete: Vec<String>,
+    /// The results file's last line was incomplete (a sweep killed while writing it, or one
+    /// still running) and was left out.
+    pub torn_last_line: bool,
 }
 
 /// The pair's identity: dataset, tf and the swept fields other than the mode's.
@@ -804,7 +807,8 @@ pub fn validate(
         }
     }
     let mut pairs: BTreeMap<String, Pair> = BTreeMap::new();
-    for (line, _) in crate::experiment::store::read_lines(&results)? {
+    let (read, torn_last_line) = crate::experiment::store::read_lines_and_torn(&results)?;
+    for (line, _) in read {
         if line["model"].as_str() != Some("cycle") || line.get("time_step").is_some() {
             continue;
         }
@@ -999,7 +1003,11 @@ pub fn validate(
         progress(&row);
         rows.push(row);
     }
-    Ok(Validation { rows, incomplete })
+    Ok(Validation {
+        rows,
+        incomplete,
+        torn_last_line,
+    })
 }
 
 /// The ranking as a table, the recommendation and the time the advice took.
@@ -1145,6 +1153,14 @@ pub fn validation_markdown(validation: &Validation, command: &str) -> String {
             text,
             "\nLeft out, their runs not all there yet: {}.",
             validation.incomplete.join("; ")
+        );
+    }
+    if validation.torn_last_line {
+        let _ = writeln!(
+            text,
+            "\nThe last line of {} was incomplete (a sweep killed while writing it, or one still \
+             running) and is left out.",
+            crate::experiment::store::RESULTS
         );
     }
     let _ = writeln!(text, "\nMade by `{command}`.");
@@ -1345,5 +1361,6 @@ pub fn validate_table(
     Ok(Validation {
         rows,
         incomplete: Vec::new(),
+        torn_last_line: false,
     })
 }

@@ -527,6 +527,19 @@ fn validation_keeps_ert_whatever_the_structures() {
         stderr.contains("--structures leap-values") && stderr.contains("no run with it"),
         "{stderr}"
     );
+    // A torn last line (a sweep killed mid-line) is left out and said, on stderr and in the
+    // report (it was silent).
+    let lines = results.join("results.jsonl");
+    let mut text = std::fs::read_to_string(&lines).unwrap();
+    text.push_str("{\"key\":\"deadbeef\",\"model\":\"cyc");
+    std::fs::write(&lines, text).unwrap();
+    let out = validate("distance");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("last line is incomplete"), "{stderr}");
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["torn_last_line"], true);
+    assert_eq!(report["rows"].as_array().unwrap().len(), 2);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -377,6 +377,9 @@ fn a_killed_sweep_resumes_to_the_same_results() {
         killed_merge.to_str().unwrap(),
     ]);
     assert!(merged.status.success(), "merge reads a torn timing file");
+    // The torn result line is left out of the merge, and said (it was silent).
+    let said = String::from_utf8_lossy(&merged.stderr);
+    assert!(said.contains("last line is incomplete"), "{said}");
 
     let resumed = Command::new(BIN).args(args(&killed)).output().unwrap();
     assert!(resumed.status.success());

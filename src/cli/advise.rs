@@ -234,6 +234,12 @@ fn validate(args: &AdviseArgs, dir: &std::path::Path) -> Result<()> {
         advise::validate(dir, data_dir.as_deref(), &options, report)
             .with_context(|| format!("--validate {}", dir.display()))?
     };
+    if validation.torn_last_line {
+        eprintln!(
+            "{}",
+            vizsim::experiment::store::torn_note(&dir.join(vizsim::experiment::store::RESULTS))
+        );
+    }
     let command = super::invocation();
     if let Some(out) = &args.out {
         // Made only now: a validation that fails leaves no empty folder behind.

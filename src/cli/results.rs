@@ -18,8 +18,15 @@ pub struct MergeArgs {
 
 pub fn merge(args: MergeArgs) -> Result<()> {
     let inputs: Vec<&Path> = args.inputs.iter().map(PathBuf::as_path).collect();
-    let n = vizsim::experiment::merge(&inputs, &args.out)?;
-    println!("{n} runs -> {}", args.out.join("results.jsonl").display());
+    let merged = vizsim::experiment::merge(&inputs, &args.out)?;
+    for path in &merged.torn {
+        eprintln!("{}", vizsim::experiment::store::torn_note(path));
+    }
+    println!(
+        "{} runs -> {}",
+        merged.runs,
+        args.out.join("results.jsonl").display()
+    );
     Ok(())
 }
 
@@ -94,12 +101,7 @@ impl ResultsArgs {
         let path = self.dir.join("results.jsonl");
         let (mut lines, torn) = vizsim::tables::read_results(&path)?;
         if torn {
-            // Said, not silent: a sweep killed mid-line (or one still running) lost that run.
-            eprintln!(
-                "note: {}: the last line is incomplete (a sweep killed while writing it, or one \
-                 still running) and is left out; running the sweep again redoes that run",
-                path.display()
-            );
+            eprintln!("{}", vizsim::experiment::store::torn_note(&path));
         }
         // A requested dataset the results do not hold (a typo) is named, not ignored.
         if let Some(absent) = self.dataset.iter().find(|d| {

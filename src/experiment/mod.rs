@@ -534,7 +534,7 @@ pub fn run_seconds(
 /// agree; the merged file is sorted by key, so any split of the same runs merges to the same
 /// bytes. Wall times (`timing.jsonl`) are merged too, one per run, the first input's when a
 /// run was timed in several (wall times differ between machines; results do not).
-pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
+pub fn merge(inputs: &[&Path], out: &Path) -> Result<Merged> {
     let mut lines: BTreeMap<String, String> = BTreeMap::new();
     // A misspelt shard folder must not merge as "no results".
     if let Some(dir) = inputs.iter().find(|d| !d.is_dir()) {
@@ -597,12 +597,17 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
         }
         Ok(())
     };
+    let mut torn = Vec::new();
     for dir in &inputs {
         if let Some(name) = store::experiment_name(dir)? {
             same_experiment(&name, dir)?;
         }
         let path = dir.join(store::RESULTS);
-        for (line, text) in store::read_lines(&path)? {
+        let (read, torn_here) = store::read_lines_and_torn(&path)?;
+        if torn_here {
+            torn.push(path.clone());
+        }
+        for (line, text) in read {
             let key = line
                 .get("key")
                 .and_then(Value::as_str)
@@ -678,7 +683,20 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<usize> {
     }
     write_lines(&out.join(store::RESULTS), &lines)?;
     drop(lock);
-    Ok(lines.len())
+    Ok(Merged {
+        runs: lines.len(),
+        torn,
+    })
+}
+
+/// What `merge` wrote.
+#[derive(Debug)]
+pub struct Merged {
+    /// Runs in the merged results.
+    pub runs: usize,
+    /// Inputs' results files whose torn last line (a shard killed mid-line) was left out: the
+    /// run it held is not merged, and running that shard again redoes it.
+    pub torn: Vec<std::path::PathBuf>,
 }
 
 /// Writes JSON lines (the map's values, in key order) atomically.

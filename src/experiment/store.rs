@@ -39,6 +39,16 @@ pub fn read_lines_and_torn(path: &Path) -> Result<(Vec<(Value, String)>, bool)> 
     Ok((lines, torn))
 }
 
+/// What a reader that leaves out a torn last line says (on stderr): a sweep killed mid-line, or
+/// one still running, lost that run, and that is said, not silent.
+pub fn torn_note(path: &Path) -> String {
+    format!(
+        "note: {}: the last line is incomplete (a sweep killed while writing it, or one still \
+         running) and is left out; running the sweep again redoes that run",
+        path.display()
+    )
+}
+
 /// The keys of the complete lines of a results file (missing file = none), read line by line
 /// so that only the keys are held (the dry run). A torn last line is left out; a malformed line
 /// elsewhere is an error, as in `read_lines`.
