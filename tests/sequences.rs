@@ -448,6 +448,22 @@ fn the_sequence_command_reports_every_step_and_rejects_bad_input() {
         by(&["--subcube", "4"]),
         by(&["--set", "occupancy.subcube=4"])
     );
+    // So does update (clap required the flag).
+    let update_by = |size: &[&str]| {
+        let mut all = vec!["update", "phantom:metaballs:32", "--json"];
+        all.extend(size);
+        let out = vizsim(&all);
+        assert!(
+            out.status.success(),
+            "{size:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        out.stdout
+    };
+    assert_eq!(
+        update_by(&["--subcube", "4"]),
+        update_by(&["--set", "occupancy.subcube=4"])
+    );
     for (args, needle) in [
         (vec!["--steps", "0", "--subcube", "4"], "zero time steps"),
         (vec!["--steps", "2"], "--subcube"),

@@ -96,8 +96,7 @@ enum Command {
     /// pass, a transfer-function change and a partial update, in cycles (docs/dynamic.md).
     #[command(
         mut_arg("subcube", |arg| arg
-            .required(true)
-            .help("Edge of the occupancy maps' sub-cubes (2..64), required: the maps whose costs are measured")),
+            .help("Edge of the occupancy maps' sub-cubes (2..64), required (here, or occupancy.subcube by --set or --config): the maps whose costs are measured")),
         mut_arg("hierarchy", not_listed),
         mut_arg("occupancy", not_listed),
         mut_arg("bricks", not_listed)

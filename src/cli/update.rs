@@ -45,10 +45,13 @@ pub fn run(args: UpdateArgs) -> Result<()> {
     let config = args.hardware.load(&[])?;
     // Before the volumes load: a configuration the update model does not model.
     vizsim::dynamic::check_modelled(&config, vizsim::dynamic::UpdateUse::Measure)?;
-    let subcube = args
-        .hardware
-        .subcube
-        .context("--subcube: the sub-cube size of the maps is required")?;
+    // The size as configured (--subcube, --set or the file), not only the flag.
+    let subcube = config.occupancy.subcube;
+    anyhow::ensure!(
+        subcube > 0,
+        "--subcube: the sub-cube size of the maps is required (or occupancy.subcube by --set or \
+         --config)"
+    );
     let volume = args.data.load(&args.dataset)?;
     let tf = vizsim::transfer::resolve_for(&args.tf, &volume).context("--tf")?;
     let table = ClassificationTable::build(
