@@ -402,10 +402,9 @@ pub fn table_cost(config: &HardwareConfig, rays: u64) -> Option<(u64, u64)> {
         return None;
     }
     let bytes = rays * b.table_entry_bytes as u64;
-    Some((
-        bytes,
-        (bytes as f64 / b.table_bytes_per_cycle).ceil() as u64,
-    ))
+    // Over the host link, at its rate and rounding as for a volume update (arch::update).
+    let link = config.host_link_per_cycle_q32().max(1) as u128;
+    Some((bytes, ((bytes as u128) << 32).div_ceil(link) as u64))
 }
 
 #[cfg(test)]
@@ -417,6 +416,26 @@ mod tests {
             .wrapping_mul(6364136223846793005)
             .wrapping_add(1442695040888963407);
         *seed >> 33
+    }
+
+    /// The start/end table loads over the host link at the rate a volume update sees: a wider
+    /// or faster link, or a slower pipeline clock, loads it in fewer cycles.
+    #[test]
+    fn the_table_loads_at_the_host_links_rate() {
+        let with = |sets: &[&str]| {
+            let mut sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+            sets.extend(["bricks.size=8".into(), "bricks.setup=table".into()]);
+            let config =
+                HardwareConfig::from_toml_str(crate::config::DEFAULT_TOML, "t", &sets).unwrap();
+            table_cost(&config, 256 * 256).unwrap()
+        };
+        let (bytes, cycles) = with(&[]);
+        assert_eq!(bytes, 262_144);
+        // 32 bits at 33 MHz over a 100 MHz clock: 1.32 bytes per cycle.
+        assert_eq!(cycles, (262_144f64 / 1.32).ceil() as u64);
+        assert_eq!(with(&["memory.host_link_bits=64"]).1, cycles.div_ceil(2));
+        assert_eq!(with(&["clock.frequency_mhz=50.0"]).1, cycles.div_ceil(2));
+        assert_eq!(with(&["memory.host_link_mhz=66.0"]).1, cycles.div_ceil(2));
     }
 
     #[test]

@@ -158,8 +158,6 @@ pub struct BricksConfig {
     pub setup_cycles_per_brick: u32,
     /// Table: bytes per pixel entry (start and end sample index).
     pub table_entry_bytes: u32,
-    /// Table: bytes per clock cycle the host link delivers.
-    pub table_bytes_per_cycle: f64,
     /// Traversal: ray-setup units working in parallel (each on one ray at a time; rays enter
     /// the queue in pixel order).
     pub setup_units: u32,
@@ -173,7 +171,6 @@ impl Default for BricksConfig {
             setup_cycles_per_ray: 1,
             setup_cycles_per_brick: 1,
             table_entry_bytes: 4,
-            table_bytes_per_cycle: 1.0,
             setup_units: 1,
         }
     }
@@ -633,6 +630,15 @@ impl HardwareConfig {
     }
 
     /// Checks every field against its allowed range.
+    /// Host-link bytes per pipeline clock cycle in 32.32 fixed point: `memory.host_link_bits` ×
+    /// `memory.host_link_mhz` over `clock.frequency_mhz`. The one rate of the link, for volume
+    /// updates and the start/end table alike; at least 5 within the validated ranges.
+    pub fn host_link_per_cycle_q32(&self) -> u64 {
+        let bytes_per_cycle =
+            self.memory.host_link_bytes_per_second() / (self.clock.frequency_mhz * 1e6);
+        (bytes_per_cycle * (1u64 << 32) as f64).round() as u64
+    }
+
     pub fn validate(&self, source: &str) -> Result<()> {
         let range =
             |field: &str, value: u64, lo: u64, hi: u64| check_range(source, field, value, lo, hi);
@@ -903,14 +909,6 @@ impl HardwareConfig {
             64,
         )?;
         range("bricks.setup_units", b.setup_units as u64, 1, 64)?;
-        let bw = b.table_bytes_per_cycle;
-        if !(bw.is_finite() && (1e-3..=1e6).contains(&bw)) {
-            return Err(Error::config(
-                source,
-                "bricks.table_bytes_per_cycle",
-                format!("{bw} is out of range; allowed 0.001..=1e6"),
-            ));
-        }
         let finite = |field: String, v: &[f32]| -> Result<()> {
             if v.iter().all(|x| x.is_finite() && x.abs() <= 1e6) {
                 Ok(())

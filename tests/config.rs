@@ -64,7 +64,6 @@ fn out_of_range_values_name_field_and_range() {
         ("clock.step_time_ns", "5e-324"),
         ("clock.frequency_mhz", "5e-324"),
         ("memory.host_link_mhz", "1e-300"),
-        ("bricks.table_bytes_per_cycle", "1e-300"),
     ] {
         let err = load(vizsim::config::DEFAULT_TOML, &[&format!("{field}={value}")])
             .unwrap_err()

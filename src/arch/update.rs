@@ -510,8 +510,7 @@ impl UpdateEngine {
         }
         let timing: &SdramTiming = &hw.sdram;
         let rows = config.rows_needed(dims) as u32;
-        let bytes_per_cycle = config.host_link_bytes_per_second() / (hw.clock.frequency_mhz * 1e6);
-        let link_per_cycle = (bytes_per_cycle * (1u64 << 32) as f64).round() as u64;
+        let link_per_cycle = hw.host_link_per_cycle_q32();
         if link_per_cycle == 0 {
             return Err(Error::config(
                 "hardware configuration",
