@@ -629,16 +629,18 @@ impl HardwareConfig {
             .then_some(self.compositing.ert_threshold as f32)
     }
 
-    /// Checks every field against its allowed range.
     /// Host-link bytes per pipeline clock cycle in 32.32 fixed point: `memory.host_link_bits` ×
     /// `memory.host_link_mhz` over `clock.frequency_mhz`. The one rate of the link, for volume
-    /// updates and the start/end table alike; at least 5 within the validated ranges.
+    /// updates and the start/end table alike. Within the validated ranges it is at least 5
+    /// (1.2e-9 bytes per cycle, rounded: the slowest link's load times come out up to 7 %
+    /// long) and saturates at `u64::MAX` (2^32 bytes per cycle and more: any load is one cycle).
     pub fn host_link_per_cycle_q32(&self) -> u64 {
         let bytes_per_cycle =
             self.memory.host_link_bytes_per_second() / (self.clock.frequency_mhz * 1e6);
         (bytes_per_cycle * (1u64 << 32) as f64).round() as u64
     }
 
+    /// Checks every field against its allowed range.
     pub fn validate(&self, source: &str) -> Result<()> {
         let range =
             |field: &str, value: u64, lo: u64, hi: u64| check_range(source, field, value, lo, hi);

@@ -222,6 +222,17 @@ fn the_host_link_bounds_a_download_at_its_bandwidth() {
     // At 8 MHz the link is the bottleneck: the update takes its time within a few cycles.
     let (slow, bound) = cycles[1];
     assert!(slow - bound < 64, "{cycles:?}");
+    // The fastest link the ranges allow (2^32 bytes per cycle and more) overflowed the
+    // engine's byte credit (a panic in a debug build): now the link is simply never the bound.
+    let mut hw = config(Mapping::Interleaved8);
+    hw.memory.host_link_bits = 1024;
+    hw.memory.host_link_mhz = 1e5;
+    hw.clock.frequency_mhz = 1e-3;
+    hw.validate("test").unwrap();
+    let mut engine = UpdateEngine::new(&hw, volume.dims, 8, 3, 0).unwrap();
+    let r = engine.update(&update, PartialMapPolicy::Widen).unwrap();
+    assert_eq!(r.host_link_cycles, 1, "{r:?}");
+    assert!(r.write_cycles > 1, "{r:?}");
 }
 
 #[test]

@@ -287,26 +287,38 @@ fn help_lists_the_leaping_flags_only_where_they_apply() {
             "update --help lists {flag}: {update}"
         );
     }
-    // The `--subcube` entry (its last mention: update's usage line names it too) up to the
-    // next option, whitespace collapsed: clap wraps long descriptions at the terminal's width.
+    // The `--subcube` entry up to the next option's line, whitespace collapsed: clap wraps
+    // long descriptions at the terminal's width (and the text itself may name `--set`).
     let subcube_line = |help: &str| {
-        let flat = help.split_whitespace().collect::<Vec<_>>().join(" ");
-        let entry = flat
-            .rsplit("--subcube <SUBCUBE>")
-            .next()
-            .unwrap_or_default();
-        entry.split(" --").next().unwrap_or_default().to_string()
+        let lines: Vec<&str> = help.lines().collect();
+        let Some(start) = lines
+            .iter()
+            .position(|l| l.trim_start().starts_with("--subcube <SUBCUBE>"))
+        else {
+            return String::new();
+        };
+        // A wrapped continuation is indented past the option column; the next option is not.
+        let indent = |l: &str| l.len() - l.trim_start().len();
+        let continued = lines[start + 1..]
+            .iter()
+            .take_while(|l| !l.trim().is_empty() && indent(l) > indent(lines[start]) + 4);
+        std::iter::once(&lines[start])
+            .chain(continued)
+            .flat_map(|l| l.split_whitespace())
+            .skip(2)
+            .collect::<Vec<_>>()
+            .join(" ")
     };
     let line = subcube_line(&update);
     assert!(
-        line.contains("required") && !line.contains("no leaping"),
+        line.contains("required") && line.contains("--config") && !line.contains("no leaping"),
         "{line}"
     );
     let sequence = help("sequence");
     assert!(!lists(&sequence, "--bricks"), "{sequence}");
     let line = subcube_line(&sequence);
     assert!(
-        line.contains("required") && !line.contains("no leaping"),
+        line.contains("required") && line.contains("--config") && !line.contains("no leaping"),
         "{line}"
     );
     // Where they apply, all four keep the one shared text.

@@ -643,7 +643,8 @@ impl UpdateEngine {
             if input_done && !self.writes_pending() {
                 break;
             }
-            credit = (credit + self.link_per_cycle).min(cap);
+            // Saturating: the fastest validated link brings 2^32 bytes per cycle and more.
+            credit = credit.saturating_add(self.link_per_cycle).min(cap);
             if !input_done {
                 stalls +=
                     self.input_cycle(&mut feed, &mut credit, voxel_bytes, &mut touched) as u64;

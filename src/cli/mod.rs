@@ -106,7 +106,7 @@ enum Command {
     /// per step update, map and render cycles, and the frames per second (docs/dynamic.md).
     #[command(
         mut_arg("subcube", |arg| arg.help(
-            "Edge of the occupancy map's sub-cubes (2..64), required unless --map none"
+            "Edge of the occupancy map's sub-cubes (2..64), required (here, or occupancy.subcube by --set or --config) unless --map none"
         )),
         mut_arg("bricks", not_listed)
     )]
