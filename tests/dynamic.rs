@@ -539,8 +539,9 @@ fn random_partial_updates_keep_memory_and_maps_right_after_every_step() {
 fn sleeping_controllers_equal_ticking_ones_for_writes_and_scans() {
     let volume = metaballs(24, 0.5);
     let next = metaballs(24, 0.8);
-    let run = |sleeping: bool| {
-        let hw = config(Mapping::Replicated4);
+    let run = |sleeping: bool, link_mhz: f64| {
+        let mut hw = config(Mapping::Replicated4);
+        hw.memory.host_link_mhz = link_mhz;
         let engine = UpdateEngine::new(&hw, volume.dims, 8, 2, 0).unwrap();
         let mut engine = if sleeping {
             engine
@@ -561,9 +562,17 @@ fn sleeping_controllers_equal_ticking_ones_for_writes_and_scans() {
         let d = engine.scan();
         (a, b, c, d, engine.module_stats(), engine.now())
     };
-    let (sleeping, ticking) = (run(true), run(false));
-    assert!(sleeping.4.iter().all(|s| s.refreshes > 0));
-    assert_eq!(format!("{sleeping:?}"), format!("{ticking:?}"));
+    // At 0.5 MHz the link is the bound (0.02 bytes per cycle) and the sleeping engine jumps
+    // over the cycles that wait for it; ticking controllers never let it jump.
+    for link_mhz in [33.0, 0.5] {
+        let (sleeping, ticking) = (run(true, link_mhz), run(false, link_mhz));
+        assert!(sleeping.4.iter().all(|s| s.refreshes > 0));
+        assert_eq!(
+            format!("{sleeping:?}"),
+            format!("{ticking:?}"),
+            "{link_mhz} MHz"
+        );
+    }
 }
 
 fn vizsim(args: &[&str]) -> std::process::Output {
@@ -620,6 +629,37 @@ fn the_update_command_prints_the_costs_and_rejects_bad_input() {
             "--next phantom:sphere:16: [16, 16, 16] voxels of 8 bits, but phantom:sphere:32",
         ),
         (vec!["update", "phantom:sphere:32"], "--subcube"),
+        // A voxel's two copies could never enter a 1-entry write FIFO: the update waited
+        // forever (found by probing the validated extremes).
+        (
+            vec![
+                "update",
+                "phantom:sphere:32",
+                "--subcube",
+                "4",
+                "--set",
+                "memory.address_fifo_depth=1",
+                "--set",
+                "memory.overtaking_window=1",
+            ],
+            "memory.address_fifo_depth",
+        ),
+        // A link so slow the update would take 3.5e12 cycles: refused up front, not simulated.
+        (
+            vec![
+                "update",
+                "phantom:sphere:32",
+                "--subcube",
+                "4",
+                "--set",
+                "clock.frequency_mhz=100000",
+                "--set",
+                "memory.host_link_mhz=0.001",
+                "--set",
+                "memory.host_link_bits=1",
+            ],
+            "2^36",
+        ),
         // Flags that would change nothing (found by probing: the output was identical).
         (
             vec![

@@ -561,6 +561,12 @@ impl SdramModule {
         (next != u64::MAX).then(|| next.max(now + 1))
     }
 
+    /// The first cycle at which a step can change anything: before it, `step` returns at once
+    /// (the controller sleeps). A module that does not sleep says the next cycle.
+    pub fn wakes_at(&self) -> u64 {
+        self.wake_at
+    }
+
     pub fn is_idle(&self) -> bool {
         self.fifo.is_empty() && self.voxel_fifo.is_empty() && self.writes.is_empty()
     }

@@ -36,6 +36,8 @@ use crate::volume::Volume;
 
 /// Header bytes of one region on the host link: origin and extent, 3 × 2 × 16 bits.
 pub const REGION_HEADER_BYTES: u64 = 12;
+/// The most cycles an update's host-link transfer may take (2^36: 11 minutes at 100 MHz).
+pub const MAX_LINK_CYCLES: u64 = 1 << 36;
 /// Bytes the host link may run ahead of the FPGA (its FIFO).
 pub const HOST_BUFFER_BYTES: u64 = 64;
 /// Voxels the input stage takes per cycle at most (one 32-bit host word of 8-bit voxels).
@@ -508,6 +510,22 @@ impl UpdateEngine {
         if dims.contains(&0) {
             return Err(Error::Invalid(format!("volume extent {dims:?} is empty")));
         }
+        // A voxel's copies enter one module's write FIFO together: a smaller FIFO could never
+        // take them, and the engine would wait forever.
+        if config.address_fifo_depth < config.replicas() {
+            return Err(Error::config(
+                "hardware configuration",
+                "memory.address_fifo_depth",
+                format!(
+                    "{} is too small for a volume update: the {} layout writes each voxel as {} \
+                     copies into one module's write FIFO at once; at least {}",
+                    config.address_fifo_depth,
+                    format!("{:?}", config.mapping).to_lowercase(),
+                    config.replicas(),
+                    config.replicas()
+                ),
+            ));
+        }
         let timing: &SdramTiming = &hw.sdram;
         let rows = config.rows_needed(dims) as u32;
         let link_per_cycle = hw.host_link_per_cycle_q32();
@@ -610,13 +628,31 @@ impl UpdateEngine {
                     .into(),
             ));
         }
+        // The link's own bound, known before simulating: a link so slow that the update would
+        // take more cycles than a simulation can step through (a refresh every few thousand
+        // cycles keeps the controllers busy) is refused, not simulated for days.
+        let voxel_bytes = self.voxel_bytes();
+        let link_bound =
+            ((update.host_bytes(voxel_bytes) as u128) << 32).div_ceil(self.link_per_cycle as u128);
+        if link_bound > MAX_LINK_CYCLES as u128 {
+            return Err(Error::config(
+                "hardware configuration",
+                "memory.host_link_mhz",
+                format!(
+                    "the host link ({:.3e} bytes per cycle) needs {link_bound} cycles for this \
+                     update, more than the 2^36 ({MAX_LINK_CYCLES}) the update engine \
+                     simulates: raise memory.host_link_bits or memory.host_link_mhz, or lower \
+                     clock.frequency_mhz",
+                    self.host_bytes_per_cycle()
+                ),
+            ));
+        }
         let start = self.now;
         let (writes0, misses0, refreshes0) = (
             self.stats_sum(|s| s.writes),
             self.stats_sum(|s| s.write_row_misses),
             self.stats_sum(|s| s.refreshes),
         );
-        let voxel_bytes = self.voxel_bytes();
         let mut feed = Feed {
             update,
             region: 0,
@@ -642,6 +678,21 @@ impl UpdateEngine {
             let input_done = feed.region >= update.regions.len();
             if input_done && !self.writes_pending() {
                 break;
+            }
+            if !input_done && !self.writes_pending() {
+                // Nothing to write, the input waiting for the link's next byte or voxel: jump
+                // over the cycles in which only the credit grows, up to the first a controller
+                // wakes in (a refresh). Exact (tests/dynamic.rs compares ticking controllers,
+                // which never skip); a slow link otherwise costs a loop turn per cycle, over a
+                // billion for a 1-bit link at 1 kHz.
+                let need = if feed.header_left > 0 { 1 } else { voxel_bytes } << 32;
+                let waiting = (need.saturating_sub(credit) as u128)
+                    .div_ceil(self.link_per_cycle as u128)
+                    .saturating_sub(1);
+                let wake = self.modules.iter().map(SdramModule::wakes_at).min();
+                let skip = (waiting as u64).min(wake.unwrap_or(u64::MAX).saturating_sub(self.now));
+                credit += skip * self.link_per_cycle;
+                self.now += skip;
             }
             // Saturating: the fastest validated link brings 2^32 bytes per cycle and more.
             credit = credit.saturating_add(self.link_per_cycle).min(cap);
