@@ -50,9 +50,9 @@ impl Drop for ScopeGuard {
 /// Runs `write`, which writes a command's outputs, so that they appear together or not at all:
 /// the files written atomically (regular files, `write_atomically`, `PendingFile`) are renamed
 /// into place only when `write` has succeeded; when it fails none is, and their temporaries are
-/// removed (a run whose JSON cannot be written leaves no PNG that looks like a result). The
-/// renames then follow one another: should one of them fail (the folder removed meanwhile),
-/// those before it are done. Outputs written through (devices, FIFOs) are written as they come.
+/// removed (a run whose JSON cannot be written leaves no PNG that looks like a result). A target
+/// that is a folder fails them all before any is renamed. The renames then follow one another:
+/// should one of them fail (the folder removed meanwhile), those before it are done. Outputs written through (devices, FIFOs) are written as they come.
 /// `write` should print nothing: a failed print ends the process without unwinding (`main`'s
 /// panic hook), which would leave the temporaries for the next write to the same path to remove.
 pub fn all_or_none<T, E: From<Error>>(
@@ -64,6 +64,14 @@ pub fn all_or_none<T, E: From<Error>>(
     // On an error the guard removes the temporaries.
     let value = write()?;
     let held = guard.close();
+    // A target that is a folder would refuse its rename after the others were done: checked
+    // first, so that case too leaves nothing.
+    if let Some((_, path)) = held.iter().find(|(_, path)| path.is_dir()) {
+        for (tmp, _) in &held {
+            let _ = std::fs::remove_file(tmp);
+        }
+        return Err(Error::Invalid(format!("{}: is a folder, not a file", path.display())).into());
+    }
     for (i, (tmp, path)) in held.iter().enumerate() {
         if let Err(e) = std::fs::rename(tmp, path) {
             for (tmp, _) in &held[i..] {
@@ -89,6 +97,16 @@ fn move_into_place(scope: Option<&HeldBack>, tmp: &Path, path: &Path) -> std::io
         }
     }
     std::fs::rename(tmp, path)
+}
+
+/// Moves a finished temporary that a library wrote by path itself (plotters' charts) to `path`,
+/// or, inside an `all_or_none` scope, holds the move back with the scope's other outputs. When
+/// the move fails the temporary is removed: nothing is left under either name.
+pub fn place_finished(tmp: &Path, path: &Path) -> Result<()> {
+    move_into_place(current_scope().as_ref(), tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(tmp);
+        Error::io(path, e)
+    })
 }
 
 /// The temporary name a file is written under before it is renamed to `path`: hidden, in the

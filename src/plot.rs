@@ -228,9 +228,12 @@ impl LineChart<'_> {
                 png.display()
             )));
         }
-        std::fs::rename(&tmp_png, &png).map_err(|e| Error::io(&png, e))?;
-        std::fs::rename(&tmp_svg, &svg).map_err(|e| Error::io(&svg, e))?;
-        Ok(())
+        // Placed with the command's other outputs when it writes them all or none.
+        if let Err(e) = crate::output::place_finished(&tmp_png, &png) {
+            let _ = std::fs::remove_file(&tmp_svg);
+            return Err(e);
+        }
+        crate::output::place_finished(&tmp_svg, &svg)
     }
 
     fn layout(&self) -> Layout {

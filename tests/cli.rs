@@ -1182,3 +1182,49 @@ fn a_frame_of_no_steps_has_no_frame_rate() {
     assert_eq!(report["frame_time_ns"], 0.0);
     assert!(report.get("fps").is_none(), "fps {}", report["fps"]);
 }
+
+/// `precision` writes its tables, JSON and charts together or not at all: a folder where one of
+/// them goes left the others (and the chart's temporaries) behind, a failed run that looked
+/// finished (found by probing).
+#[test]
+fn precision_writes_its_report_together_or_not_at_all() {
+    for blocked in ["phantom-sphere-16-psnr.png", "phantom-sphere-16.json"] {
+        let dir = scratch(&format!("precision-blocked-{blocked}"));
+        std::fs::create_dir_all(dir.join(blocked)).unwrap();
+        let out = vizsim(&[
+            "precision",
+            "--threads",
+            "1",
+            "--dataset",
+            "phantom:sphere:16",
+            "--size",
+            "16x16",
+            "--out",
+            dir.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && stderr.contains(blocked),
+            "{stderr}"
+        );
+        let left: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(left, vec![blocked.to_string()], "{blocked}: {left:?}");
+    }
+    // Unblocked, the same run writes all nine files.
+    let dir = scratch("precision-whole");
+    succeeds(&[
+        "precision",
+        "--threads",
+        "1",
+        "--dataset",
+        "phantom:sphere:16",
+        "--size",
+        "16x16",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 9);
+}

@@ -67,7 +67,10 @@ pub fn run(args: PrecisionArgs) -> Result<()> {
     let start = Instant::now();
     let mut report = vizsim::precision::sweep(&base, &volume)?;
     report.made_by = super::invocation();
-    for path in vizsim::precision::write_report(&report, &args.out)? {
+    // The tables, the JSON and the charts together or none (a failed run must not look done).
+    let written =
+        vizsim::output::all_or_none(|| vizsim::precision::write_report(&report, &args.out))?;
+    for path in written {
         println!("wrote {}", path.display());
     }
     println!("{} in {:.1} s", volume.name, start.elapsed().as_secs_f64());
