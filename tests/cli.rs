@@ -867,6 +867,12 @@ fn messages_name_the_option_at_fault() {
             &["verify-skip", "--max-increment-voxels", "0"],
             "at least 1",
         ),
+        // The increments are too many because of the increment bits too (it blamed only
+        // --max-increment-voxels, which was left at its default).
+        (
+            &["verify-skip", "--increment-bits", "25"],
+            "--increment-bits 25",
+        ),
     ] {
         assert_fails(args, &[needle], &dir.join("none"));
     }

@@ -114,7 +114,15 @@ pub fn run(args: VerifySkipArgs) -> Result<()> {
         params.max_increment = max_increment_voxels
             .checked_shl(widths.inc_frac_bits)
             .filter(|m| (1..=1 << 24).contains(m))
-            .ok_or_else(|| anyhow::anyhow!("--max-increment-voxels {max_increment_voxels}: too many increments to enumerate"))?;
+            .ok_or_else(|| {
+                anyhow::anyhow!(
+                    "--max-increment-voxels {max_increment_voxels} at --increment-bits {}: \
+                     {max_increment_voxels} × 2^{} increments per axis, more than the 2^24 this \
+                     check enumerates (lower either)",
+                    widths.inc_frac_bits,
+                    widths.inc_frac_bits
+                )
+            })?;
         runs.push((s, params));
     }
     // The run enumerates every offset in the sub-cube for every increment, both directions.
