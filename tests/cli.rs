@@ -1194,10 +1194,8 @@ fn a_frame_of_no_steps_has_no_frame_rate() {
 /// finished (found by probing).
 #[test]
 fn precision_writes_its_report_together_or_not_at_all() {
-    for blocked in ["phantom-sphere-16-psnr.png", "phantom-sphere-16.json"] {
-        let dir = scratch(&format!("precision-blocked-{blocked}"));
-        std::fs::create_dir_all(dir.join(blocked)).unwrap();
-        let out = vizsim(&[
+    let precision = |dir: &Path| {
+        vizsim(&[
             "precision",
             "--threads",
             "1",
@@ -1207,7 +1205,12 @@ fn precision_writes_its_report_together_or_not_at_all() {
             "16x16",
             "--out",
             dir.to_str().unwrap(),
-        ]);
+        ])
+    };
+    for blocked in ["phantom-sphere-16-psnr.png", "phantom-sphere-16.json"] {
+        let dir = scratch(&format!("precision-blocked-{blocked}"));
+        std::fs::create_dir_all(dir.join(blocked)).unwrap();
+        let out = precision(&dir);
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(
             !out.status.success() && stderr.contains(blocked),
@@ -1221,16 +1224,11 @@ fn precision_writes_its_report_together_or_not_at_all() {
     }
     // Unblocked, the same run writes all nine files.
     let dir = scratch("precision-whole");
-    succeeds(&[
-        "precision",
-        "--threads",
-        "1",
-        "--dataset",
-        "phantom:sphere:16",
-        "--size",
-        "16x16",
-        "--out",
-        dir.to_str().unwrap(),
-    ]);
+    let out = precision(&dir);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 9);
 }
