@@ -52,7 +52,8 @@ impl Drop for ScopeGuard {
 /// into place only when `write` has succeeded; when it fails none is, and their temporaries are
 /// removed (a run whose JSON cannot be written leaves no PNG that looks like a result). A target
 /// that is a folder fails them all before any is renamed. The renames then follow one another:
-/// should one of them fail (the folder removed meanwhile), those before it are done. Outputs written through (devices, FIFOs) are written as they come.
+/// should one of them fail (the folder removed meanwhile), those before it are done. Outputs
+/// written through (devices, FIFOs) are written as they come.
 /// `write` should print nothing: a failed print ends the process without unwinding (`main`'s
 /// panic hook), which would leave the temporaries for the next write to the same path to remove.
 pub fn all_or_none<T, E: From<Error>>(
