@@ -424,8 +424,19 @@ fn the_sequence_command_reports_every_step_and_rejects_bad_input() {
     );
     // The sub-cube size set in the configuration rather than by the flag is the same run (it
     // was refused as missing).
-    let by = |size: &[&str]| {
-        let mut all = vec![
+    // So does update (clap required the flag there).
+    let json_of = |command: &[&str], size: &[&str]| {
+        let all = [command, size].concat();
+        let out = vizsim(&all);
+        assert!(
+            out.status.success(),
+            "{all:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        out.stdout
+    };
+    for command in [
+        &[
             "sequence",
             "--source",
             "phantom:metaballs:32",
@@ -434,36 +445,15 @@ fn the_sequence_command_reports_every_step_and_rejects_bad_input() {
             "--size",
             "32x32",
             "--json",
-        ];
-        all.extend(size);
-        let out = vizsim(&all);
-        assert!(
-            out.status.success(),
-            "{size:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
+        ][..],
+        &["update", "phantom:metaballs:32", "--json"],
+    ] {
+        assert_eq!(
+            json_of(command, &["--subcube", "4"]),
+            json_of(command, &["--set", "occupancy.subcube=4"]),
+            "{command:?}"
         );
-        out.stdout
-    };
-    assert_eq!(
-        by(&["--subcube", "4"]),
-        by(&["--set", "occupancy.subcube=4"])
-    );
-    // So does update (clap required the flag).
-    let update_by = |size: &[&str]| {
-        let mut all = vec!["update", "phantom:metaballs:32", "--json"];
-        all.extend(size);
-        let out = vizsim(&all);
-        assert!(
-            out.status.success(),
-            "{size:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        out.stdout
-    };
-    assert_eq!(
-        update_by(&["--subcube", "4"]),
-        update_by(&["--set", "occupancy.subcube=4"])
-    );
+    }
     for (args, needle) in [
         (vec!["--steps", "0", "--subcube", "4"], "zero time steps"),
         (vec!["--steps", "2"], "--subcube"),
