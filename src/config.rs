@@ -708,7 +708,7 @@ impl HardwareConfig {
             return Err(Error::config(
                 source,
                 "clock.frequency_mhz",
-                format!("{f} is out of range; allowed 0.001..=100000 MHz"),
+                format!("{f:?} is out of range; allowed 0.001..=100000 MHz"),
             ));
         }
         self.memory.validate(source)?;
@@ -750,7 +750,7 @@ impl HardwareConfig {
                 source,
                 "leap_values.range_fraction",
                 format!(
-                    "{} is out of range; allowed 0..=1 (a fraction of the voxel type's maximum)",
+                    "{:?} is out of range; allowed 0..=1 (a fraction of the voxel type's maximum)",
                     lv.range_fraction
                 ),
             ));
@@ -766,7 +766,7 @@ impl HardwareConfig {
             return Err(Error::config(
                 source,
                 "leap_values.max_spacing",
-                format!("{m} is out of range; allowed 0 (the run's spacing) or 1/64..=16 voxels"),
+                format!("{m:?} is out of range; allowed 0 (the run's spacing) or 1/64..=16 voxels"),
             ));
         }
         let w = &self.volume_word;
@@ -801,7 +801,7 @@ impl HardwareConfig {
             return Err(Error::config(
                 source,
                 "compositing.ert_threshold",
-                format!("{t} is out of range; allowed (0, 1]"),
+                format!("{t:?} is out of range; allowed (0, 1]"),
             ));
         }
         let step = self.clock.step_time_ns;
@@ -809,7 +809,7 @@ impl HardwareConfig {
             return Err(Error::config(
                 source,
                 "clock.step_time_ns",
-                format!("{step} is out of range; allowed 0.001..=1e6 ns"),
+                format!("{step:?} is out of range; allowed 0.001..=1e6 ns"),
             ));
         }
         self.validate_ray_range(source)?;
@@ -963,7 +963,7 @@ impl HardwareConfig {
             return Err(Error::config(
                 source,
                 "geometry.radius",
-                format!("{} is out of range; allowed (0, 1e6] voxels", g.radius),
+                format!("{:?} is out of range; allowed (0, 1e6] voxels", g.radius),
             ));
         }
         if g.colour.iter().any(|c| !(0.0..=1.0).contains(c)) {
@@ -1000,7 +1000,7 @@ impl HardwareConfig {
                 source,
                 "iso.value",
                 format!(
-                    "{} is out of range; allowed 0 (half the dataset's largest density) or a \
+                    "{:?} is out of range; allowed 0 (half the dataset's largest density) or a \
                      density in (0, 65535]",
                     iso.value
                 ),

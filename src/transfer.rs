@@ -221,6 +221,13 @@ pub fn resolve(arg: &str, volume_name: &str) -> Result<TransferFunction> {
     if path.is_file() {
         return TransferFunction::load(path);
     }
+    if path.exists() {
+        // A directory or a device (`/dev/zero` would never end): not read, and not a preset.
+        return Err(Error::Invalid(format!(
+            "transfer function `{arg}`: `{arg}` is not a regular file (a directory or a \
+             device); give a transfer function file (TOML, docs/config.md) or a preset name"
+        )));
+    }
     let wanted = match arg {
         "zero" | "class" => format!("{}-{arg}", preset_key(volume_name)),
         other => other.to_string(),
@@ -234,10 +241,24 @@ pub fn resolve(arg: &str, volume_name: &str) -> Result<TransferFunction> {
                      \"Transfer functions and volumes of your own\")"
             )));
         }
+        // The dataset's own presets when it has some (the whole list is some 70 names).
+        let key = format!("{}-", preset_key(volume_name));
+        let own: Vec<&str> = preset_names()
+            .into_iter()
+            .filter(|n| n.starts_with(&key))
+            .collect();
+        let listed = if own.is_empty() {
+            format!("presets: {}", preset_names().join(", "))
+        } else {
+            format!(
+                "this dataset's presets: {} (`zero` and `class` name its own); the others are \
+                 in configs/transfer/",
+                own.join(", ")
+            )
+        };
         return Err(Error::Invalid(format!(
-            "transfer function `{arg}` for dataset `{volume_name}`: no file `{arg}` and no preset `{wanted}`; \
-             presets: {}",
-            preset_names().join(", ")
+            "transfer function `{arg}` for dataset `{volume_name}`: no file `{arg}` and no \
+             preset `{wanted}`; {listed}"
         )));
     };
     TransferFunction::from_toml(text, &format!("configs/transfer/{name}.toml"), name)

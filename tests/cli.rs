@@ -979,6 +979,61 @@ fn messages_name_the_option_at_fault() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("holds no cycle"));
 }
 
+/// A transfer function argument names what is wrong with it: a path that is no regular file
+/// (`/dev/zero` would be read forever) is not called missing, and a misspelt preset lists the
+/// dataset's own presets, not all seventy.
+#[test]
+fn transfer_function_arguments_say_what_they_are_not() {
+    let dir = scratch("tf-arguments");
+    let png = dir.join("f.png");
+    let frame = ["render", "--dataset", "phantom:sphere:16", "--size", "8x8"];
+    let with_tf = |tf: &str| {
+        let mut args = frame.to_vec();
+        args.extend(["--tf", tf, "--output", png.to_str().unwrap()]);
+        args.iter().map(|s| s.to_string()).collect::<Vec<_>>()
+    };
+    for tf in [dir.to_str().unwrap(), "/dev/null"] {
+        let args = with_tf(tf);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        assert_fails(&args, &["is not a regular file"], &png);
+    }
+    let args = with_tf("clas");
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let out = vizsim(&args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("phantom-sphere-class") && !stderr.contains("aneurism-class"),
+        "{stderr}"
+    );
+}
+
+/// Out-of-range numbers are echoed as written, not expanded into hundreds of digits.
+#[test]
+fn out_of_range_numbers_are_echoed_compactly() {
+    let dir = scratch("numbers");
+    let json = dir.join("s.json");
+    let frame = ["sim", "--dataset", "phantom:sphere:16", "--size", "8x8"];
+    for (extra, needle) in [
+        (&["--sample", "1e300"][..], "--sample 1e300:"),
+        (
+            &["--set", "compositing.ert_threshold=1e300"],
+            "1e300 is out of range",
+        ),
+        (
+            &["--set", "memory.host_link_mhz=1e-300"],
+            "1e-300 is out of range",
+        ),
+    ] {
+        let mut args = frame.to_vec();
+        args.extend(extra);
+        args.extend(["--json", json.to_str().unwrap()]);
+        assert_fails(&args, &[needle], &json);
+        let stderr = String::from_utf8_lossy(&vizsim(&args).stderr).into_owned();
+        assert!(stderr.len() < 1000, "{extra:?}: {stderr}");
+    }
+}
+
 /// A run whose last output cannot be written leaves none of its outputs: the image, the
 /// command trace and the waveform written before it would look like a finished run (found by
 /// probing: `--json /dev/full` left the PNG).

@@ -188,7 +188,7 @@ impl MemoryConfig {
             return err(
                 "memory.host_link_mhz",
                 format!(
-                    "{mhz} is out of range; allowed 0.001..=100000 MHz (a host link of zero \
+                    "{mhz:?} is out of range; allowed 0.001..=100000 MHz (a host link of zero \
                      bandwidth could never deliver an update)"
                 ),
             );

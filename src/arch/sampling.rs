@@ -75,7 +75,7 @@ impl Sampling {
     pub fn validate(&self, source: &str) -> Result<()> {
         if !(self.rate.is_finite() && self.rate > 0.0 && self.rate <= 1.0) {
             return Err(Error::Invalid(format!(
-                "{source} {}: the sampling rate must be a number in (0, 1], e.g. 0.05 (1 = \
+                "{source} {:?}: the sampling rate must be a number in (0, 1], e.g. 0.05 (1 = \
                  every unit, the exact simulation)",
                 self.rate
             )));

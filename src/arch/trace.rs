@@ -171,7 +171,7 @@ impl Waveform {
     ) -> Result<Waveform> {
         if !(frequency_mhz > 0.0 && frequency_mhz <= 1e5) {
             return Err(Error::Invalid(format!(
-                "{}: clock frequency {frequency_mhz} MHz is out of range (0, 1e5]",
+                "{}: clock frequency {frequency_mhz:?} MHz is out of range (0, 1e5]",
                 path.display()
             )));
         }

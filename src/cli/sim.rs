@@ -198,7 +198,7 @@ pub fn run(args: SimArgs) -> Result<()> {
         if let (Some(e), Some(ci)) = (&report.sampling, m.cycles_ci95) {
             writeln!(
                 said,
-                "sampled (rate {}): the timing figures above are estimates; cycles {} ± {:.0} \
+                "sampled (rate {:?}): the timing figures above are estimates; cycles {} ± {:.0} \
              (95 % interval, ± {:.2} %); {} of {} units of {} rays simulated in {} segments \
              ({} rays, {} cycles with warm-up)",
                 m.sample_rate.unwrap_or_default(),
