@@ -109,7 +109,18 @@ pub fn reduced_size(size: (u32, u32), max_rays: u64) -> (u32, u32) {
     }
     let f = (max_rays as f64 / rays as f64).sqrt();
     let scale = |n: u32| ((n as f64 * f).floor() as u32).clamp(8.min(n), n);
-    (scale(size.0), scale(size.1))
+    let (w, h) = (scale(size.0), scale(size.1));
+    // A side held at its minimum (a 16384x1 image) leaves the budget to the other side.
+    let fit = |n: u32, other: u32, full: u32| {
+        ((max_rays / other as u64).min(full as u64) as u32).clamp(8.min(full), n)
+    };
+    if w as u64 * h as u64 <= max_rays {
+        (w, h)
+    } else if w >= h {
+        (fit(w, h, size.0), h)
+    } else {
+        (w, fit(h, w, size.1))
+    }
 }
 
 /// The cost model's parameters, from the hardware configuration (docs/advise.md).

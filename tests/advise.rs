@@ -27,6 +27,25 @@ fn options(views: u32, sample: (u32, u32), structures: Vec<Structure>) -> Advise
     }
 }
 
+/// The image the functional model traces holds at most `--rays` rays, the run's aspect kept
+/// while both sides can shrink (a 16384x1 image with 64 rays traced 1024 before).
+#[test]
+fn the_traced_image_stays_within_the_ray_budget() {
+    for (size, rays, want) in [
+        ((256, 256), 2048, (45, 45)),
+        ((100, 100), 100_000, (100, 100)),
+        ((16384, 1), 64, (64, 1)),
+        ((1, 16384), 64, (1, 64)),
+        ((16384, 4), 64, (16, 4)),
+        ((4096, 8), 64, (8, 8)),
+        ((3, 5), 64, (3, 5)),
+    ] {
+        let got = advise::reduced_size(size, rays);
+        assert_eq!(got, want, "{size:?} at {rays} rays");
+        assert!(got.0 as u64 * got.1 as u64 <= rays, "{got:?}");
+    }
+}
+
 #[test]
 fn advice_is_deterministic() {
     let volume = dataset::load("phantom:metaballs:32", None).unwrap();
