@@ -1256,42 +1256,70 @@ pub fn validate_table(
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let bad = |line: usize, message: String| Error::format(path, format!("line {line}: {message}"));
     let mut lines = text.lines();
-    let header: Vec<&str> = lines
-        .next()
-        .ok_or_else(|| bad(1, "empty table".into()))?
-        .split(',')
-        .collect();
+    // Labels with a comma (`no ERT, 4³`) are quoted, as `vizsim table` writes them.
+    let cells_of = |number: usize, line: &str| {
+        crate::tables::csv_cells(line).ok_or_else(|| bad(number, "a quote is left open".into()))
+    };
+    let header = cells_of(1, lines.next().ok_or_else(|| bad(1, "empty table".into()))?)?;
     if header.len() < 3 || header[0] != "dataset" || header[1] != "tf" {
         return Err(bad(1, "expected a header `dataset,tf,MODE...`".into()));
+    }
+    if let Some(label) = header
+        .iter()
+        .enumerate()
+        .find_map(|(i, h)| header[..i].contains(h).then_some(h))
+    {
+        return Err(bad(1, format!("column `{label}` is given twice")));
     }
     // Column label -> mode: `ERT`, `N³` (leapN), `N³+h` (leapN+hier); others are ignored.
     let modes: Vec<Option<String>> = header[2..]
         .iter()
         .map(|label| {
-            if *label == "ERT" {
+            if label == "ERT" {
                 return Some("ert".to_string());
             }
             let (n, hier) = match label.strip_suffix("+h") {
                 Some(n) => (n, true),
-                None => (*label, false),
+                None => (label.as_str(), false),
             };
             let n: usize = n.strip_suffix('³')?.parse().ok()?;
             Some(format!("ert+leap{n}{}", if hier { "+hier" } else { "" }))
         })
         .collect();
     let mut rows = Vec::new();
+    let mut seen = std::collections::BTreeSet::new();
     for (i, line) in lines.enumerate() {
         let number = i + 2;
         if line.trim().is_empty() {
             continue;
         }
-        let cells: Vec<&str> = line.split(',').collect();
+        let cells = cells_of(number, line)?;
         if cells.len() != header.len() {
             return Err(bad(
                 number,
                 format!("{} cells, the header has {}", cells.len(), header.len()),
             ));
         }
+        // A cell of a ranked mode is empty (not run) or a frame rate; anything else would
+        // be left out or skew the loss unseen.
+        for ((label, cell), mode) in header[2..].iter().zip(&cells[2..]).zip(&modes) {
+            if mode.is_none() || cell.is_empty() {
+                continue;
+            }
+            if !cell.parse::<f64>().is_ok_and(|v| v.is_finite() && v > 0.0) {
+                return Err(bad(
+                    number,
+                    format!("column `{label}`: `{cell}` is not a frame rate (a positive number)"),
+                ));
+            }
+        }
+        if !seen.insert((cells[0].clone(), cells[1].clone())) {
+            return Err(bad(
+                number,
+                format!("`{}`, `{}` is a row twice", cells[0], cells[1]),
+            ));
+        }
+        let cells: Vec<&str> = cells.iter().map(String::as_str).collect();
         // `vessel (aneurism)`, `skull (stand-in: tooth)`: the published name, which the
         // dataset aliases resolve to the data (or its stand-in).
         let dataset = cells[0].split(" (").next().unwrap_or(cells[0]).trim();
@@ -1331,7 +1359,12 @@ pub fn validate_table(
             .iter()
             .find(|c| c.fits && fps_of(&c.mode).is_some())
         else {
-            return Err(bad(number, "no configuration that fits the SRAM".into()));
+            return Err(bad(
+                number,
+                "no frame rate in the row is of a configuration the advisor ranks that fits the \
+                 SRAM (columns ERT, N³ or N³+h with a number)"
+                    .into(),
+            ));
         };
         let (best, best_fps) = truth
             .iter()
@@ -1368,6 +1401,9 @@ pub fn validate_table(
         };
         progress(&row);
         rows.push(row);
+    }
+    if rows.is_empty() {
+        return Err(bad(2, "no rows: the table holds only its header".into()));
     }
     Ok(Validation {
         rows,

@@ -632,9 +632,51 @@ fn csv_field(text: &str) -> String {
     }
 }
 
+/// The cells of one CSV line as `Table::csv` writes them (a cell holding a comma or a quote is
+/// quoted, its quotes doubled); None for a quote left open.
+pub fn csv_cells(line: &str) -> Option<Vec<String>> {
+    let mut cells = Vec::new();
+    let mut cell = String::new();
+    let mut chars = line.chars().peekable();
+    let mut quoted = false;
+    while let Some(c) = chars.next() {
+        match (quoted, c) {
+            (true, '"') if chars.peek() == Some(&'"') => {
+                chars.next();
+                cell.push('"');
+            }
+            (true, '"') => quoted = false,
+            (false, '"') if cell.is_empty() => quoted = true,
+            (false, ',') => cells.push(std::mem::take(&mut cell)),
+            (_, c) => cell.push(c),
+        }
+    }
+    (!quoted).then(|| {
+        cells.push(cell);
+        cells
+    })
+}
+
 #[cfg(test)]
 mod tests {
-    use super::{build, mode_label, read_results, sort_key, Metric};
+    use super::{build, csv_cells, csv_field, mode_label, read_results, sort_key, Metric};
+
+    /// `csv_cells` reads back what `csv_field` writes, commas and quotes included.
+    #[test]
+    fn csv_cells_read_back_the_written_fields() {
+        let fields = [
+            "dataset",
+            "no ERT, 4³",
+            "say \"hi\"",
+            "",
+            "a,\"b\",c",
+            "8³+h",
+        ];
+        let line: Vec<String> = fields.iter().map(|f| csv_field(f)).collect();
+        assert_eq!(csv_cells(&line.join(",")).unwrap(), fields);
+        assert_eq!(csv_cells("a,\"open").as_deref(), None);
+        assert_eq!(csv_cells("").unwrap(), [""]);
+    }
 
     /// `vizsim table` reads a results file as a resumed sweep does: a torn last line is left
     /// out whether or not the kill left its newline (a probe found `table` refusing a folder

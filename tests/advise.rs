@@ -309,6 +309,49 @@ fn a_table_is_validated_against_its_own_frame_rates() {
         err.contains("cycle-fps.csv") && err.contains("line 2") && err.contains("grey"),
         "{err}"
     );
+    // A quoted label with a comma, as `vizsim table` writes `no ERT, 4³`, is one cell: the
+    // 8³+h column after it is read, not shifted (it was split in two).
+    std::fs::write(
+        &table,
+        "dataset,tf,\"no ERT, 4³\",ERT,8³,8³+h,16³\n\
+         phantom:sphere:32,class,1.0,10.0,5.0,20.0,2.0\n",
+    )
+    .unwrap();
+    let row = &validate(&table).unwrap().rows[0];
+    assert_eq!((row.best.as_str(), row.best_fps), ("ert+leap8+hier", 20.0));
+    // Cells that are no frame rate, a row twice, a column twice, no rows: refused by line.
+    for (text, needle) in [
+        (
+            "dataset,tf,ERT,8³\nphantom:sphere:32,class,NaN,5\n",
+            "`NaN` is not a frame rate",
+        ),
+        (
+            "dataset,tf,ERT,8³\nphantom:sphere:32,class,10,-5\n",
+            "`-5` is not a frame rate",
+        ),
+        (
+            "dataset,tf,ERT,8³\nphantom:sphere:32,class,10,fast\n",
+            "`fast`",
+        ),
+        (
+            "dataset,tf,ERT,8³\nphantom:sphere:32,class,10,5\nphantom:sphere:32,class,10,5\n",
+            "line 3: `phantom:sphere:32`, `class` is a row twice",
+        ),
+        (
+            "dataset,tf,ERT,ERT\nphantom:sphere:32,class,10,5\n",
+            "`ERT` is given twice",
+        ),
+        ("dataset,tf,ERT,8³\n", "no rows"),
+        (
+            "dataset,tf,ERT,7³\nphantom:sphere:32,class,,5\n",
+            "no frame rate in the row",
+        ),
+        ("dataset,tf,ERT\n\"phantom,class,5\n", "quote is left open"),
+    ] {
+        std::fs::write(&table, text).unwrap();
+        let err = validate(&table).unwrap_err().to_string();
+        assert!(err.contains(needle), "{text:?}: {err}");
+    }
     // A table of another metric has the same layout: its name tells, and it is refused.
     let cycles = dir.join("cycle-cycles.csv");
     std::fs::write(
