@@ -845,6 +845,70 @@ fn another_experiment_into_a_used_folder_is_refused() {
     ]);
     assert!(again.status.success());
     assert_eq!(sorted_lines(&out.join("results.jsonl")), results);
+    // Without a readable description the result lines still name their experiment (a
+    // missing or garbled experiment.resolved.json let `second` resume `first`'s folder).
+    let resolved = out.join("experiment.resolved.json");
+    for garbled in [None, Some("{}"), Some("not json")] {
+        match garbled {
+            None => std::fs::remove_file(&resolved).unwrap(),
+            Some(text) => std::fs::write(&resolved, text).unwrap(),
+        }
+        let refused = vizsim(&["sweep", second.to_str().unwrap(), "--out", out_arg]);
+        let stderr = String::from_utf8_lossy(&refused.stderr);
+        assert!(
+            !refused.status.success() && stderr.contains("experiment `first`, not `second`"),
+            "{garbled:?}: {stderr}"
+        );
+        assert_eq!(sorted_lines(&out.join("results.jsonl")), results);
+    }
+}
+
+/// A run key twice in one results file with other figures (edited, or two files joined) is
+/// refused by every reader, naming the file and both lines: before, a resumed sweep went on
+/// silently and plot and advise used whichever line came last. The same line twice is read
+/// once.
+#[test]
+fn a_run_twice_in_a_results_file_is_refused_by_every_reader() {
+    let dir = temp_dir("run-twice");
+    let exp = write_experiment(&dir, &step_only());
+    let out = dir.join("out");
+    let (exp_, out_) = (exp.to_str().unwrap(), out.to_str().unwrap());
+    vizsim_ok(&["sweep", exp_, "--out", out_, "--quiet"]);
+    let results = out.join("results.jsonl");
+    let text = std::fs::read_to_string(&results).unwrap();
+    let second = text
+        .lines()
+        .nth(1)
+        .unwrap()
+        .replace("\"steps\":", "\"steps\":1");
+    std::fs::write(&results, format!("{text}{second}\n")).unwrap();
+    let count = text.lines().count() + 1;
+    let expected = format!("line {count} repeats run");
+    vizsim_fails(&["sweep", exp_, "--out", out_, "--quiet"], &expected);
+    vizsim_fails(&["table", out_], &expected);
+    vizsim_fails(&["plot", out_], &expected);
+    vizsim_fails(
+        &["merge", out_, "--out", dir.join("m").to_str().unwrap()],
+        &expected,
+    );
+    vizsim_fails(&["advise", "--validate", out_], &expected);
+    assert!(!dir.join("m").exists() && !out.join("tables").exists());
+    // The same line twice: one run, one table cell's frame.
+    let same = text.lines().nth(1).unwrap();
+    std::fs::write(&results, format!("{text}{same}\n")).unwrap();
+    vizsim_ok(&[
+        "table",
+        out_,
+        "--rows",
+        "dataset,tf,mode",
+        "--columns",
+        "ray_queue.rays",
+    ]);
+    vizsim_ok(&["merge", out_, "--out", dir.join("m").to_str().unwrap()]);
+    assert_eq!(
+        sorted_lines(&dir.join("m").join("results.jsonl")).len(),
+        text.lines().count()
+    );
 }
 
 /// The highest resident memory of a running process so far (VmHWM), in KiB; None once it

@@ -106,10 +106,14 @@ fn scan(path: &Path) -> Result<(Vec<Line>, u64, bool)> {
     let Some(bytes) = crate::input::read_existing(path)? else {
         return Ok((Vec::new(), 0, false));
     };
-    let mut lines = Vec::new();
+    let mut lines: Vec<Line> = Vec::new();
     let mut offset = 0usize;
     let mut torn = false;
     let mut number = 0;
+    // Line number and place in `lines` of each run key: a key twice with other figures is a
+    // file edited or joined with another, and whichever line a reader kept would be a guess;
+    // the same line twice (a file joined with itself) is read once.
+    let mut first_line: std::collections::HashMap<String, (usize, usize)> = Default::default();
     while offset < bytes.len() {
         number += 1;
         let end = bytes[offset..].iter().position(|&b| b == b'\n');
@@ -122,7 +126,25 @@ fn scan(path: &Path) -> Result<(Vec<Line>, u64, bool)> {
             .and_then(|t| serde_json::from_str::<Value>(t).ok().map(|v| (v, t)))
             .filter(|(v, _)| v.get("key").and_then(Value::as_str).is_some());
         match (parsed, end) {
-            (Some((v, t)), Some(_)) => lines.push((v, t.to_string())),
+            (Some((v, t)), Some(_)) => {
+                let key = v["key"].as_str().unwrap_or_default().to_string();
+                match first_line.get(&key) {
+                    Some(&(_, at)) if lines[at].1 == t => {}
+                    Some(&(first, _)) => {
+                        return Err(Error::format(
+                            path,
+                            format!(
+                                "line {number} repeats run {key} of line {first} with other \
+                                 figures (an edited file, or two joined?)"
+                            ),
+                        ))
+                    }
+                    None => {
+                        first_line.insert(key, (number, lines.len()));
+                        lines.push((v, t.to_string()));
+                    }
+                }
+            }
             // The last line, cut short by a kill: redo its run.
             (_, None) => {
                 torn = true;
@@ -329,10 +351,19 @@ impl ResultStore {
     }
 
     /// Refuses a folder that holds another experiment's results (by name): its run keys would
-    /// mix into this one's tables. A folder without a resolved experiment is taken as new.
+    /// mix into this one's tables. The name is the resolved experiment's, or, when that file
+    /// is missing or unreadable, the result lines' own.
     pub fn check_same_experiment(dir: &Path, name: &str) -> Result<()> {
         must_be_a_folder(dir)?;
-        match experiment_name(dir)? {
+        let other = match experiment_name(dir)? {
+            Some(other) => Some(other),
+            None => read_lines(&dir.join(RESULTS))?
+                .iter()
+                .filter_map(|(line, _)| line.get("experiment").and_then(Value::as_str))
+                .find(|&n| n != name)
+                .map(str::to_string),
+        };
+        match other {
             Some(other) if other != name => Err(Error::Invalid(format!(
                 "{}: the folder holds results of experiment `{other}`, not `{name}`; sweep into \
                  another folder (or remove this one)",
