@@ -307,9 +307,54 @@ fn tf_rank(tf: &str) -> (bool, String) {
     (tf != "zero", tf.to_string())
 }
 
+/// The per-frame charts' x label: the orbit's step in degrees when every result is a frame of
+/// one orbit of N views (`orbit:K/N`).
+fn frame_axis_label(lines: &[Value]) -> String {
+    let orbits: BTreeSet<Option<&str>> = lines
+        .iter()
+        .map(|l| {
+            l["view"]
+                .as_str()
+                .and_then(|v| v.strip_prefix("orbit:"))
+                .and_then(|v| v.split_once('/'))
+                .map(|(_, n)| n)
+        })
+        .collect();
+    let orbit = match orbits.into_iter().collect::<Vec<_>>()[..] {
+        [Some(n)] => n.parse::<u32>().ok().filter(|&n| n > 0),
+        _ => None,
+    };
+    match orbit {
+        Some(n) => format!(
+            "frame ({}° per frame for a {n}-frame orbit)",
+            fmt_degrees(360.0 / n as f64)
+        ),
+        None => "frame".to_string(),
+    }
+}
+
+fn fmt_degrees(d: f64) -> String {
+    let text = format!("{d:.2}");
+    text.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
 /// Writes every chart the results support into `out`; returns how many.
 pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
     let mut written = 0;
+    // Two datasets whose names make the same file name (`a/v.raw`, `a-v.raw`) get a numbered
+    // second file rather than one chart overwriting the other.
+    let mut used = BTreeSet::new();
+    let mut stem = |name: String| {
+        let mut unique = name.clone();
+        for n in 2.. {
+            if used.insert(unique.clone()) {
+                break;
+            }
+            unique = format!("{name}-{n}");
+        }
+        out.join(unique)
+    };
+    let frame_label = frame_axis_label(lines);
     let all: Vec<&Value> = lines.iter().collect();
     let models: BTreeSet<String> = lines.iter().map(|l| text(l, "model")).collect();
     // Grouped and named by the dataset's name; titled with its label (stand-ins marked).
@@ -366,12 +411,12 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                     }
                     LineChart {
                         title: &title,
-                        x_label: "frame (5° per frame for a 72-frame orbit)",
+                        x_label: &frame_label,
                         y_label: &with_note(y_label, &note),
                         series,
                         log_y: true,
                     }
-                    .write(&out.join(format!(
+                    .write(&stem(format!(
                         "{model}-per-frame-{}-{}{}",
                         file_safe(dataset),
                         file_safe(tf),
@@ -430,7 +475,7 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                     log_y: false,
                 }
                 .write_with(
-                    &out.join(format!(
+                    &stem(format!(
                         "{model}-fps-vs-subcube-{}{}",
                         file_safe(dataset),
                         facet.file_suffix()
@@ -505,7 +550,7 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                         log_y: false,
                     }
                     .write_with(
-                        &out.join(format!(
+                        &stem(format!(
                             "{model}-fps-vs-{}-{}{}",
                             file_safe(&axis),
                             file_safe(dataset),
@@ -577,7 +622,7 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
             log_y: false,
         }
         .write_with(
-            &out.join(format!("skippable-vs-subcube{}", facet.file_suffix())),
+            &stem(format!("skippable-vs-subcube{}", facet.file_suffix())),
             &ChartOptions { x_ticks },
         )?;
         written += 1;

@@ -345,6 +345,27 @@ pub fn check_writable(path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Fails early, before a long computation, when files cannot be written into the folder
+/// `dir`, and leaves nothing behind: an existing folder is tried with a temporary file; a
+/// missing one by making and removing its first missing folder under the nearest that exists.
+pub fn check_folder_writable(dir: &Path) -> Result<()> {
+    if dir.is_dir() {
+        let probe = dir.join(format!(".vizsim-write-check.tmp{}", std::process::id()));
+        std::fs::File::create(&probe).map_err(|e| Error::io(dir, e))?;
+        let _ = std::fs::remove_file(&probe);
+        return Ok(());
+    }
+    let mut first_missing = dir.to_path_buf();
+    let mut parent = dir.parent();
+    while let Some(p) = parent.filter(|p| !p.as_os_str().is_empty() && !p.exists()) {
+        first_missing = p.to_path_buf();
+        parent = p.parent();
+    }
+    std::fs::create_dir(&first_missing).map_err(|e| Error::io(dir, e))?;
+    let _ = std::fs::remove_dir(&first_missing);
+    Ok(())
+}
+
 pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut std::io::BufWriter<Sink>) -> std::io::Result<()>,

@@ -1377,3 +1377,116 @@ size = "24x24"
     assert!(skippable.contains(&Some(0.0)));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Commands that write several files write all or none: a folder standing where one goes
+/// fails the command and leaves none of the others (table, plot, advise --validate and merge
+/// left the files written before it). An --out that cannot be made fails before the work.
+#[test]
+fn results_commands_write_all_their_files_or_none() {
+    let dir = temp_dir("all-or-none");
+    let exp = write_experiment(&dir, &step_only().replace("orbit = 72", "orbit = 12"));
+    let out = dir.join("out");
+    let (exp_, out_) = (exp.to_str().unwrap(), out.to_str().unwrap());
+    vizsim_ok(&["sweep", exp_, "--out", out_, "--quiet"]);
+    let files = |d: &Path| -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(d)
+            .map(|e| {
+                e.flatten()
+                    .map(|e| e.file_name().to_string_lossy().into_owned())
+                    .collect()
+            })
+            .unwrap_or_default();
+        names.sort();
+        names
+    };
+    let rows = ["--rows", "dataset,tf,mode", "--columns", "ray_queue.rays"];
+    let tables = dir.join("tables");
+    std::fs::create_dir_all(tables.join("step-steps.md")).unwrap();
+    let mut args = vec!["table", out_, "--out", tables.to_str().unwrap()];
+    args.extend(rows);
+    vizsim_fails(&args, "step-steps.md");
+    assert_eq!(files(&tables), ["step-steps.md"]);
+    std::fs::remove_dir(tables.join("step-steps.md")).unwrap();
+    vizsim_ok(&args);
+    assert!(files(&tables).contains(&"step-steps.csv".to_string()));
+
+    let plots = dir.join("plots");
+    vizsim_ok(&["plot", out_, "--out", plots.to_str().unwrap()]);
+    let charts = files(&plots);
+    // The orbit's own step, not a 72-frame orbit's 5°.
+    let per_frame = charts
+        .iter()
+        .find(|c| c.contains("per-frame") && c.ends_with(".svg"));
+    let svg = std::fs::read_to_string(plots.join(per_frame.expect("a per-frame chart"))).unwrap();
+    assert!(
+        svg.contains("30° per frame for a 12-frame orbit"),
+        "{svg:.300}"
+    );
+    let blocked = dir.join("plots2");
+    std::fs::create_dir_all(blocked.join(charts.last().unwrap())).unwrap();
+    let out2 = vizsim(&["plot", out_, "--out", blocked.to_str().unwrap()]);
+    assert!(!out2.status.success());
+    assert_eq!(files(&blocked), [charts.last().unwrap().clone()]);
+
+    let merged = dir.join("merged");
+    std::fs::create_dir_all(merged.join("experiment.resolved.json")).unwrap();
+    vizsim_fails(
+        &["merge", out_, "--out", merged.to_str().unwrap()],
+        "is a folder",
+    );
+    assert!(!merged.join("timing.jsonl").exists() && !merged.join("results.jsonl").exists());
+
+    let advice = dir.join("advice");
+    std::fs::create_dir_all(advice.join("validation.json")).unwrap();
+    let failed = vizsim(&[
+        "advise",
+        "--validate",
+        out_,
+        "--out",
+        advice.to_str().unwrap(),
+    ]);
+    assert!(!failed.status.success());
+    assert!(!advice.join("validation.md").exists() && !advice.join("validation.csv").exists());
+    // An --out that cannot be made fails before any advice is computed.
+    let failed = vizsim(&["advise", "--validate", out_, "--out", "/proc/vizsim-no"]);
+    let stderr = String::from_utf8_lossy(&failed.stderr);
+    assert!(
+        !failed.status.success() && stderr.contains("--out /proc/vizsim-no"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("advised"), "{stderr}");
+}
+
+/// Datasets whose names make one file name (`a/v`, `a-v`) get a chart each: the second is
+/// numbered instead of overwriting the first.
+#[test]
+fn charts_of_datasets_with_one_file_name_are_all_kept() {
+    let dir = temp_dir("chart-names");
+    let lines: Vec<serde_json::Value> = ["d/a/v", "d/a-v"]
+        .iter()
+        .flat_map(|dataset| {
+            (0..2).map(move |frame| {
+                serde_json::json!({
+                    "key": format!("{dataset}{frame}"), "model": "step", "dataset": dataset,
+                    "tf": "zero", "mode": "none", "frame": frame, "view": format!("orbit:{frame}/8"),
+                    "steps": 100 + frame, "fps": 1.0,
+                })
+            })
+        })
+        .collect();
+    let written = vizsim::figures::write_all(&lines, &dir).unwrap();
+    let mut charts: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".svg"))
+        .collect();
+    charts.sort();
+    assert_eq!(written, 2);
+    assert_eq!(charts.len(), 2, "{charts:?}");
+    let svg = std::fs::read_to_string(dir.join(&charts[0])).unwrap();
+    assert!(
+        svg.contains("45° per frame for a 8-frame orbit"),
+        "{svg:.300}"
+    );
+}

@@ -194,6 +194,8 @@ fn validate(args: &AdviseArgs, dir: &std::path::Path) -> Result<()> {
     };
     if let Some(out) = &args.out {
         vizsim::experiment::store::must_be_a_folder(out)?;
+        vizsim::output::check_folder_writable(out)
+            .with_context(|| format!("--out {}", out.display()))?;
     }
     let quiet = args.json;
     let report = |row: &advise::ValidationRow| {
@@ -244,7 +246,8 @@ fn validate(args: &AdviseArgs, dir: &std::path::Path) -> Result<()> {
     if let Some(out) = &args.out {
         // Made only now: a validation that fails leaves no empty folder behind.
         std::fs::create_dir_all(out).with_context(|| format!("--out {}", out.display()))?;
-        advise::write_validation(out, &validation, &command)?;
+        // The three files or none (a folder in the way of one left the others).
+        vizsim::output::all_or_none(|| advise::write_validation(out, &validation, &command))?;
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&validation)?);

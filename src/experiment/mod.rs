@@ -662,26 +662,29 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<Merged> {
             )));
         }
     }
-    // Each file is written atomically, and results.jsonl last: a merge killed half-way leaves
-    // the previous results (or none), never results without their timings.
-    if !timings.is_empty() {
-        write_lines(&out.join(store::TIMING), &timings)?;
-    }
-    if let Some(text) = resolved {
-        match serde_json::from_slice::<Value>(&text) {
-            // The merged folder is no shard: the first input's description, shard null as an
-            // unsharded sweep writes it.
-            Ok(Value::Object(mut description)) if description.contains_key("shard") => {
-                description.insert("shard".into(), Value::Null);
-                crate::output::write_json(&out.join(store::RESOLVED), &description)?;
-            }
-            _ => crate::output::write_atomically(&out.join(store::RESOLVED), |w| {
-                use std::io::Write;
-                w.write_all(&text)
-            })?,
+    // Each file is written atomically, all or none (a folder in the way of one leaves none),
+    // and results.jsonl placed last: a merge killed half-way leaves the previous results (or
+    // none), never results without their timings.
+    crate::output::all_or_none(|| -> Result<()> {
+        if !timings.is_empty() {
+            write_lines(&out.join(store::TIMING), &timings)?;
         }
-    }
-    write_lines(&out.join(store::RESULTS), &lines)?;
+        if let Some(text) = resolved {
+            match serde_json::from_slice::<Value>(&text) {
+                // The merged folder is no shard: the first input's description, shard null as
+                // an unsharded sweep writes it.
+                Ok(Value::Object(mut description)) if description.contains_key("shard") => {
+                    description.insert("shard".into(), Value::Null);
+                    crate::output::write_json(&out.join(store::RESOLVED), &description)?;
+                }
+                _ => crate::output::write_atomically(&out.join(store::RESOLVED), |w| {
+                    use std::io::Write;
+                    w.write_all(&text)
+                })?,
+            }
+        }
+        write_lines(&out.join(store::RESULTS), &lines)
+    })?;
     drop(lock);
     Ok(Merged {
         runs: lines.len(),
