@@ -78,12 +78,29 @@ pub fn difference_image(a: &[[u8; 4]], b: &[[u8; 4]], gain: u32) -> Vec<[u8; 4]>
 pub fn load_rgba(path: &Path) -> Result<(u32, u32, Vec<[u8; 4]>)> {
     // Only a regular file: image::open would block on a FIFO. The decoder's own limits bound
     // the memory a hostile header asks for.
+    use image::ImageDecoder;
     let file = crate::input::open_regular(path)?;
-    let img = image::ImageReader::new(std::io::BufReader::new(file))
+    let unreadable = |e: image::ImageError| Error::format(path, format!("cannot read image: {e}"));
+    let mut reader = image::ImageReader::new(std::io::BufReader::new(file))
         .with_guessed_format()
-        .map_err(|e| Error::io(path, e))?
-        .decode()
-        .map_err(|e| Error::format(path, format!("cannot read image: {e}")))?
+        .map_err(|e| Error::io(path, e))?;
+    // The memory budget bounds the decoder, not its fixed 512 MiB default (which refused
+    // the 16384² frames vizsim itself writes, whatever the budget); with no budget known the
+    // default stays.
+    if let Some(budget) = crate::budget::budget()? {
+        let mut limits = image::Limits::no_limits();
+        limits.max_alloc = Some(budget);
+        reader.limits(limits);
+    }
+    let decoder = reader.into_decoder().map_err(unreadable)?;
+    let (w, h) = decoder.dimensions();
+    // Decoded, converted to RGBA8 and split into pixels: about three copies at 4 bytes each.
+    crate::budget::check(
+        &format!("{}: a {w}x{h} image", path.display()),
+        w as u64 * h as u64 * 12,
+    )?;
+    let img = image::DynamicImage::from_decoder(decoder)
+        .map_err(unreadable)?
         .to_rgba8();
     let (w, h) = img.dimensions();
     let pixels = img

@@ -1008,6 +1008,39 @@ fn transfer_function_arguments_say_what_they_are_not() {
     );
 }
 
+/// `compare` checks an image's size against the memory budget before decoding it, and its
+/// PSNR says it is over R, G and B (an alpha difference leaves it infinite).
+#[test]
+fn compare_keeps_to_the_memory_budget_and_names_its_psnr() {
+    let dir = scratch("compare-budget");
+    let (a, b) = (dir.join("a.png"), dir.join("b.png"));
+    image::RgbaImage::new(1500, 1500).save(&a).unwrap();
+    image::RgbaImage::from_pixel(1500, 1500, image::Rgba([0, 0, 0, 9]))
+        .save(&b)
+        .unwrap();
+    let (a_, b_) = (a.to_str().unwrap(), b.to_str().unwrap());
+    let json = dir.join("c.json");
+    assert_fails(
+        &[
+            "--memory-budget",
+            "10M",
+            "compare",
+            a_,
+            b_,
+            "--json",
+            json.to_str().unwrap(),
+        ],
+        &["a.png: a 1500x1500 image needs about", "budget of 10.0 MiB"],
+        &json,
+    );
+    let out = succeeds(&["--memory-budget", "100M", "compare", a_, b_]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("PSNR (R, G, B) inf dB") && stdout.contains("A 9"),
+        "{stdout}"
+    );
+}
+
 /// Out-of-range numbers are echoed as written, not expanded into hundreds of digits.
 #[test]
 fn out_of_range_numbers_are_echoed_compactly() {

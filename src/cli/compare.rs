@@ -12,7 +12,7 @@ pub struct CompareArgs {
     /// Write the comparison as JSON.
     #[arg(long)]
     json: Option<PathBuf>,
-    /// Write a difference image (|A - B| x 16).
+    /// Write a difference image, a PNG whatever the name (|A - B| x 16 in R, G, B).
     #[arg(long)]
     diff: Option<PathBuf>,
 }
@@ -56,7 +56,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
     })?;
     // Printed after the outputs are in place (a failed print must not leave their temporaries).
     println!(
-        "max |error| R {} G {} B {} A {}, mean {:.4}, PSNR {:.2} dB, {} pixels differ by more than 1 LSB{}",
+        "max |error| R {} G {} B {} A {}, mean {:.4}, PSNR (R, G, B) {:.2} dB, {} pixels differ by more than 1 LSB{}",
         result.max_abs_error[0],
         result.max_abs_error[1],
         result.max_abs_error[2],
