@@ -873,6 +873,16 @@ fn messages_name_the_option_at_fault() {
             &["verify-skip", "--increment-bits", "25"],
             "--increment-bits 25",
         ),
+        // A whole number too large for a size is not called "not a whole number"; a data
+        // folder that is a file is not called missing.
+        (
+            &["info", "phantom:sphere:18446744073709551617"],
+            "size `18446744073709551617` is too large",
+        ),
+        (
+            &["info", "--data-dir", "/dev/null", "fuel"],
+            "--data-dir /dev/null: not a folder",
+        ),
     ] {
         assert_fails(args, &[needle], &dir.join("none"));
     }

@@ -218,11 +218,18 @@ fn bad_experiments_fail_before_any_run_naming_axis_and_value() {
         ),
         (
             ("\"none\", \"ert+leap4\"", "\"ert+ert\", \"ert+leap4\""),
-            "a ert token is given twice",
+            "`ert`: only one `ert` token per mode",
         ),
         (
             ("\"none\", \"ert+leap4\"", "\"ert+leap4+leap8\""),
-            "a leap token is given twice",
+            "`leap8`: only one `leap` token per mode",
+        ),
+        (
+            (
+                "[frames]",
+                "zip = [[\"ray_queue.rays\", \"ray_queue.rays\"]]\n[frames]",
+            ),
+            "given twice in one zip group",
         ),
         (
             (

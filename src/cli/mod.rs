@@ -171,7 +171,16 @@ impl DataArgs {
     /// `../shared/data` when present.
     pub fn dir(&self) -> Result<Option<PathBuf>> {
         if let Some(dir) = &self.data_dir {
-            anyhow::ensure!(dir.is_dir(), "--data-dir {}: no such folder", dir.display());
+            anyhow::ensure!(
+                dir.is_dir(),
+                "--data-dir {}: {}",
+                dir.display(),
+                if dir.exists() {
+                    "not a folder"
+                } else {
+                    "no such folder"
+                }
+            );
         }
         Ok(dataset::data_dir(self.data_dir.as_deref()))
     }

@@ -209,7 +209,7 @@ impl Mode {
                 token.trim_end_matches(|c: char| c.is_ascii_digit())
             };
             if seen.contains(&kind) {
-                return Err(format!("`{token}`: a {kind} token is given twice"));
+                return Err(format!("`{token}`: only one `{kind}` token per mode"));
             }
             seen.push(kind);
             match token {
@@ -757,6 +757,12 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
                 .iter()
                 .position(|(p, _)| p == path)
                 .ok_or_else(|| bad("zip", format!("`{path}` is not an axis")))?;
+            if members.contains(&i) {
+                return Err(bad(
+                    "zip",
+                    format!("`{path}` is given twice in one zip group"),
+                ));
+            }
             if zipped[i] {
                 return Err(bad("zip", format!("`{path}` is in two zip groups")));
             }

@@ -192,9 +192,15 @@ pub fn parse_spec(text: &str) -> Result<PhantomSpec> {
     for (position, part) in parts.enumerate() {
         match part.split_once('=') {
             None if position == 0 => {
-                spec.size = part
-                    .parse()
-                    .map_err(|_| bad(format!("size `{part}` is not a whole number")))?;
+                spec.size = part.parse().map_err(|_| {
+                    bad(
+                        if !part.is_empty() && part.bytes().all(|b| b.is_ascii_digit()) {
+                            format!("size `{part}` is too large")
+                        } else {
+                            format!("size `{part}` is not a whole number")
+                        },
+                    )
+                })?;
             }
             None => {
                 return Err(bad(format!(
