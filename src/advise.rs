@@ -1313,12 +1313,6 @@ pub fn validate_table(
                 ));
             }
         }
-        if !seen.insert((cells[0].clone(), cells[1].clone())) {
-            return Err(bad(
-                number,
-                format!("`{}`, `{}` is a row twice", cells[0], cells[1]),
-            ));
-        }
         let cells: Vec<&str> = cells.iter().map(String::as_str).collect();
         // `vessel (aneurism)`, `skull (stand-in: tooth)`: the published name, which the
         // dataset aliases resolve to the data (or its stand-in).
@@ -1333,6 +1327,16 @@ pub fn validate_table(
                 ))
             }
         };
+        if !seen.insert((dataset.to_string(), tf)) {
+            return Err(bad(
+                number,
+                format!(
+                    "dataset `{dataset}`, transfer function `{tf}` is a row twice (a table with \
+                     more row fields than dataset and tf? validate one made with the default \
+                     rows)"
+                ),
+            ));
+        }
         let volume = crate::volume::dataset::load(dataset, data_dir)?;
         let base = RunDescription {
             size,

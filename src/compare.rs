@@ -87,18 +87,24 @@ pub fn load_rgba(path: &Path) -> Result<(u32, u32, Vec<[u8; 4]>)> {
     // The memory budget bounds the decoder, not its fixed 512 MiB default (which refused
     // the 16384² frames vizsim itself writes, whatever the budget); with no budget known the
     // default stays.
-    if let Some(budget) = crate::budget::budget()? {
-        let mut limits = image::Limits::no_limits();
-        limits.max_alloc = Some(budget);
-        reader.limits(limits);
-    }
+    let mut limits = match crate::budget::budget()? {
+        Some(budget) => {
+            let mut limits = image::Limits::no_limits();
+            limits.max_alloc = Some(budget);
+            limits
+        }
+        None => image::Limits::default(),
+    };
+    reader.limits(limits.clone());
     let decoder = reader.into_decoder().map_err(unreadable)?;
     let (w, h) = decoder.dimensions();
     // Decoded, converted to RGBA8 and split into pixels: about three copies at 4 bytes each.
     crate::budget::check(
         &format!("{}: a {w}x{h} image", path.display()),
-        w as u64 * h as u64 * 12,
+        (w as u64).saturating_mul(h as u64).saturating_mul(12),
     )?;
+    // The decoded buffer itself, which `from_decoder` does not check against the limits.
+    limits.reserve(decoder.total_bytes()).map_err(unreadable)?;
     let img = image::DynamicImage::from_decoder(decoder)
         .map_err(unreadable)?
         .to_rgba8();

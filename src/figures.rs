@@ -310,18 +310,21 @@ fn tf_rank(tf: &str) -> (bool, String) {
 /// The per-frame charts' x label: the orbit's step in degrees when every result is a frame of
 /// one orbit of N views (`orbit:K/N`).
 fn frame_axis_label(lines: &[Value]) -> String {
-    let orbits: BTreeSet<Option<&str>> = lines
+    // Only orbit views are parsed (a path view would load its file).
+    let orbits: BTreeSet<Option<u32>> = lines
         .iter()
-        .map(|l| {
-            l["view"]
-                .as_str()
-                .and_then(|v| v.strip_prefix("orbit:"))
-                .and_then(|v| v.split_once('/'))
-                .map(|(_, n)| n)
-        })
+        .map(
+            |l| match l["view"].as_str().filter(|v| v.starts_with("orbit:")) {
+                Some(v) => match crate::camera::View::parse(v) {
+                    Ok(crate::camera::View::Orbit { n, .. }) => Some(n),
+                    _ => None,
+                },
+                None => None,
+            },
+        )
         .collect();
     let orbit = match orbits.into_iter().collect::<Vec<_>>()[..] {
-        [Some(n)] => n.parse::<u32>().ok().filter(|&n| n > 0),
+        [Some(n)] => Some(n),
         _ => None,
     };
     match orbit {

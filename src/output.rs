@@ -345,12 +345,27 @@ pub fn check_writable(path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Runs `write`, which may make the folder `dir`; when it fails, a `dir` that did not exist
+/// before is removed again if it is empty (a failed command leaves no empty output folder).
+pub fn removing_new_folder_on_error<T, E>(
+    dir: &Path,
+    write: impl FnOnce() -> std::result::Result<T, E>,
+) -> std::result::Result<T, E> {
+    let existed = dir.exists();
+    let result = write();
+    if result.is_err() && !existed {
+        let _ = std::fs::remove_dir(dir);
+    }
+    result
+}
+
 /// Fails early, before a long computation, when files cannot be written into the folder
 /// `dir`, and leaves nothing behind: an existing folder is tried with a temporary file; a
 /// missing one by making and removing its first missing folder under the nearest that exists.
 pub fn check_folder_writable(dir: &Path) -> Result<()> {
     if dir.is_dir() {
-        let probe = dir.join(format!(".vizsim-write-check.tmp{}", std::process::id()));
+        // Named as a write's temporary, so that one left by a kill is removed by the next.
+        let probe = temporary_path(&dir.join("vizsim-write-check"))?;
         std::fs::File::create(&probe).map_err(|e| Error::io(dir, e))?;
         let _ = std::fs::remove_file(&probe);
         return Ok(());

@@ -221,18 +221,19 @@ pub fn resolve(arg: &str, volume_name: &str) -> Result<TransferFunction> {
     if path.is_file() {
         return TransferFunction::load(path);
     }
-    if path.exists() {
-        // A directory or a device (`/dev/zero` would never end): not read, and not a preset.
-        return Err(Error::Invalid(format!(
-            "transfer function `{arg}`: `{arg}` is not a regular file (a directory or a \
-             device); give a transfer function file (TOML, docs/config.md) or a preset name"
-        )));
-    }
     let wanted = match arg {
         "zero" | "class" => format!("{}-{arg}", preset_key(volume_name)),
         other => other.to_string(),
     };
     let Some((name, text)) = presets::EMBEDDED.iter().find(|(n, _)| *n == wanted) else {
+        if path.exists() {
+            // A directory or a device (`/dev/zero` would never end): not read. (A preset of
+            // the same name wins: a folder `class/` does not hide `--tf class`.)
+            return Err(Error::Invalid(format!(
+                "transfer function `{arg}`: `{arg}` is not a regular file (a directory or a \
+                 device); give a transfer function file (TOML, docs/config.md) or a preset name"
+            )));
+        }
         if arg == "class" {
             return Err(Error::Invalid(format!(
                 "transfer function `class` for dataset `{volume_name}`: there is no preset \

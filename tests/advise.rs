@@ -335,7 +335,11 @@ fn a_table_is_validated_against_its_own_frame_rates() {
         ),
         (
             "dataset,tf,ERT,8³\nphantom:sphere:32,class,10,5\nphantom:sphere:32,class,10,5\n",
-            "line 3: `phantom:sphere:32`, `class` is a row twice",
+            "line 3: dataset `phantom:sphere:32`, transfer function `class` is a row twice",
+        ),
+        (
+            "dataset,tf,ERT,8³\nphantom:sphere:32,'0',10,5\nphantom:sphere:32,zero,10,5\n",
+            "transfer function `zero` is a row twice",
         ),
         (
             "dataset,tf,ERT,ERT\nphantom:sphere:32,class,10,5\n",

@@ -1002,6 +1002,19 @@ fn transfer_function_arguments_say_what_they_are_not() {
         args.extend(["--tf", tf, "--output", png.to_str().unwrap()]);
         args.iter().map(|s| s.to_string()).collect::<Vec<_>>()
     };
+    // A folder named like a preset does not hide it.
+    std::fs::create_dir_all(dir.join("class")).unwrap();
+    let in_dir = Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args(with_tf("class"))
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        in_dir.status.success(),
+        "{}",
+        String::from_utf8_lossy(&in_dir.stderr)
+    );
+    std::fs::remove_file(&png).unwrap();
     for tf in [dir.to_str().unwrap(), "/dev/null"] {
         let args = with_tf(tf);
         let args: Vec<&str> = args.iter().map(String::as_str).collect();

@@ -484,3 +484,40 @@ fn a_text_input_whose_parse_exceeds_the_budget_is_refused() {
     );
     assert!(!png.exists());
 }
+
+/// A command that fails after making its output folder removes the folder when it made it and
+/// it is empty; a folder that was there, or holds something, stays.
+#[test]
+fn a_failed_write_leaves_no_new_empty_folder() {
+    let dir = scratch("new-folder");
+    let fail = |out: &std::path::Path, leave_file: bool| {
+        vizsim::output::removing_new_folder_on_error(out, || -> Result<(), String> {
+            std::fs::create_dir_all(out).unwrap();
+            if leave_file {
+                std::fs::write(out.join("kept"), b"x").unwrap();
+            }
+            Err("failed".into())
+        })
+    };
+    let new = dir.join("new");
+    assert!(fail(&new, false).is_err());
+    assert!(!new.exists(), "the new empty folder is removed");
+    let with_file = dir.join("with-file");
+    assert!(fail(&with_file, true).is_err());
+    assert!(
+        with_file.join("kept").exists(),
+        "a folder with content stays"
+    );
+    let existing = dir.join("existing");
+    std::fs::create_dir_all(&existing).unwrap();
+    assert!(fail(&existing, false).is_err());
+    assert!(existing.is_dir(), "a folder that was there stays");
+    // Success keeps the new folder.
+    let made = dir.join("made");
+    vizsim::output::removing_new_folder_on_error(&made, || -> Result<(), String> {
+        std::fs::create_dir_all(&made).unwrap();
+        Ok(())
+    })
+    .unwrap();
+    assert!(made.is_dir());
+}

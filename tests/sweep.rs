@@ -892,6 +892,7 @@ fn a_run_twice_in_a_results_file_is_refused_by_every_reader() {
     let count = text.lines().count() + 1;
     let expected = format!("line {count} repeats run");
     vizsim_fails(&["sweep", exp_, "--out", out_, "--quiet"], &expected);
+    vizsim_fails(&["sweep", exp_, "--out", out_, "--dry-run"], &expected);
     vizsim_fails(&["table", out_], &expected);
     vizsim_fails(&["plot", out_], &expected);
     vizsim_fails(

@@ -245,9 +245,13 @@ fn validate(args: &AdviseArgs, dir: &std::path::Path) -> Result<()> {
     let command = super::invocation();
     if let Some(out) = &args.out {
         // Made only now: a validation that fails leaves no empty folder behind.
-        std::fs::create_dir_all(out).with_context(|| format!("--out {}", out.display()))?;
-        // The three files or none (a folder in the way of one left the others).
-        vizsim::output::all_or_none(|| advise::write_validation(out, &validation, &command))?;
+        // The three files or none (a folder in the way of one left the others), and no empty
+        // folder after a failure.
+        vizsim::output::removing_new_folder_on_error(out, || {
+            std::fs::create_dir_all(out).with_context(|| format!("--out {}", out.display()))?;
+            vizsim::output::all_or_none(|| advise::write_validation(out, &validation, &command))
+                .map_err(anyhow::Error::from)
+        })?;
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&validation)?);

@@ -68,7 +68,9 @@ pub fn plot(args: PlotArgs) -> Result<()> {
         args.results.dir.display()
     );
     // Every chart or none: a failure halfway leaves no partial set that looks complete.
-    let written = vizsim::output::all_or_none(|| vizsim::figures::write_all(&lines, &out))?;
+    let written = vizsim::output::removing_new_folder_on_error(&out, || {
+        vizsim::output::all_or_none(|| vizsim::figures::write_all(&lines, &out))
+    })?;
     println!("{written} charts -> {}", out.display());
     Ok(())
 }
@@ -204,57 +206,59 @@ pub fn write_tables(
         .map_or(String::new(), |m| format!(" of the {m} model"));
     // Every table or none: a failure halfway (a folder where a file goes, a full disk) leaves
     // no tables that look like the whole set. They are printed once all are in place.
-    let all_markdown = vizsim::output::all_or_none(|| -> Result<String> {
-        let mut all_markdown = String::new();
-        for model in ["step", "cycle"] {
-            let of_model: Vec<&serde_json::Value> = lines
-                .iter()
-                .filter(|l| l.get("model").and_then(|m| m.as_str()) == Some(model))
-                .collect();
-            if of_model.is_empty() {
-                continue;
-            }
-            for (m, &metric) in metrics.iter().enumerate() {
-                if !of_model.iter().any(|l| metric.value(l).is_some()) {
+    let all_markdown = vizsim::output::removing_new_folder_on_error(&out, || {
+        vizsim::output::all_or_none(|| -> Result<String> {
+            let mut all_markdown = String::new();
+            for model in ["step", "cycle"] {
+                let of_model: Vec<&serde_json::Value> = lines
+                    .iter()
+                    .filter(|l| l.get("model").and_then(|m| m.as_str()) == Some(model))
+                    .collect();
+                if of_model.is_empty() {
                     continue;
                 }
-                tabulated[m] = true;
-                // Skippable sub-cubes are a property of the map, not of a model's timing.
-                let clock = match (metric, model) {
-                    (Metric::Skippable, _) => "occupancy map",
-                    (_, "step") => "step model, published cost 12.5 ns per step",
-                    _ => "cycle-accurate model at its clock",
-                };
-                let subject = format!("{} ({clock})", metric.label());
-                let mut table = tables::build(&of_model, metric, rows, columns, &subject)?;
-                table.made_by = Some(made_by.clone());
-                let stem = out.join(format!("{model}-{}", metric.file_name()));
-                let md = table.markdown();
-                vizsim::output::write_atomically(&stem.with_extension("md"), |w| {
-                    std::io::Write::write_all(w, md.as_bytes())
-                })?;
-                let csv = table.csv();
-                vizsim::output::write_atomically(&stem.with_extension("csv"), |w| {
-                    std::io::Write::write_all(w, csv.as_bytes())
-                })?;
-                all_markdown += &md;
-                all_markdown += "\n";
+                for (m, &metric) in metrics.iter().enumerate() {
+                    if !of_model.iter().any(|l| metric.value(l).is_some()) {
+                        continue;
+                    }
+                    tabulated[m] = true;
+                    // Skippable sub-cubes are a property of the map, not of a model's timing.
+                    let clock = match (metric, model) {
+                        (Metric::Skippable, _) => "occupancy map",
+                        (_, "step") => "step model, published cost 12.5 ns per step",
+                        _ => "cycle-accurate model at its clock",
+                    };
+                    let subject = format!("{} ({clock})", metric.label());
+                    let mut table = tables::build(&of_model, metric, rows, columns, &subject)?;
+                    table.made_by = Some(made_by.clone());
+                    let stem = out.join(format!("{model}-{}", metric.file_name()));
+                    let md = table.markdown();
+                    vizsim::output::write_atomically(&stem.with_extension("md"), |w| {
+                        std::io::Write::write_all(w, md.as_bytes())
+                    })?;
+                    let csv = table.csv();
+                    vizsim::output::write_atomically(&stem.with_extension("csv"), |w| {
+                        std::io::Write::write_all(w, csv.as_bytes())
+                    })?;
+                    all_markdown += &md;
+                    all_markdown += "\n";
+                }
             }
-        }
-        anyhow::ensure!(
-            tabulated.iter().any(|&t| t),
-            "{}: no result{of_model} carries --metric {}",
-            dir.display(),
-            missing(&metrics, &tabulated).join(",")
-        );
-        let summary = match &results.model {
-            Some(m) => format!("tables-{m}.md"),
-            None => "tables.md".to_string(),
-        };
-        vizsim::output::write_atomically(&out.join(summary), |w| {
-            std::io::Write::write_all(w, all_markdown.as_bytes())
-        })?;
-        Ok(all_markdown)
+            anyhow::ensure!(
+                tabulated.iter().any(|&t| t),
+                "{}: no result{of_model} carries --metric {}",
+                dir.display(),
+                missing(&metrics, &tabulated).join(",")
+            );
+            let summary = match &results.model {
+                Some(m) => format!("tables-{m}.md"),
+                None => "tables.md".to_string(),
+            };
+            vizsim::output::write_atomically(&out.join(summary), |w| {
+                std::io::Write::write_all(w, all_markdown.as_bytes())
+            })?;
+            Ok(all_markdown)
+        })
     })?;
     print!("{all_markdown}");
     let missing = missing(&metrics, &tabulated);

@@ -6,7 +6,7 @@
 //! made consistent with the results (torn or malformed lines dropped, one entry per result,
 //! `null` for a result whose time a kill lost, none for runs without a result).
 
-use std::collections::HashSet;
+use std::collections::{BTreeSet, HashMap, HashSet};
 use std::fs::{File, OpenOptions};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -51,17 +51,25 @@ pub fn torn_note(path: &Path) -> String {
 
 /// The keys of the complete lines of a results file (missing file = none), read line by line
 /// so that only the keys are held (the dry run). A torn last line is left out; a malformed line
-/// elsewhere is an error, as in `read_lines`.
+/// elsewhere, or a key on two lines with different text, is an error, as in `read_lines`.
 pub fn result_keys(path: &Path) -> Result<HashSet<String>> {
+    Ok(stream_keys(path)?.0)
+}
+
+/// As `result_keys`, with the experiment names the lines carry.
+fn stream_keys(path: &Path) -> Result<(HashSet<String>, BTreeSet<String>)> {
     use std::io::BufRead;
     match std::fs::symlink_metadata(path) {
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(HashSet::new()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Default::default()),
         Err(e) => return Err(Error::io(path, e)),
         Ok(_) => {}
     }
     let file = crate::input::open_regular(path)?;
     let mut reader = std::io::BufReader::new(file);
-    let mut keys = HashSet::new();
+    // Per key, its line and a hash of its text: the duplicate check of `scan` without
+    // holding the lines.
+    let mut keys: HashMap<String, (usize, u64)> = HashMap::new();
+    let mut experiments = BTreeSet::new();
     let mut line = Vec::new();
     let mut number = 0;
     let mut malformed = None;
@@ -84,17 +92,44 @@ pub fn result_keys(path: &Path) -> Result<HashSet<String>> {
         if line.last() != Some(&b'\n') {
             break;
         }
-        let key = serde_json::from_slice::<Value>(&line[..n - 1])
-            .ok()
+        let parsed = serde_json::from_slice::<Value>(&line[..n - 1]).ok();
+        let key = parsed
+            .as_ref()
             .and_then(|v| v.get("key").and_then(Value::as_str).map(str::to_string));
-        match key {
-            Some(k) => {
-                keys.insert(k);
+        let Some(key) = key else {
+            malformed = Some(number);
+            continue;
+        };
+        if let Some(name) = parsed.as_ref().and_then(|v| v["experiment"].as_str()) {
+            if !experiments.contains(name) {
+                experiments.insert(name.to_string());
             }
-            None => malformed = Some(number),
+        }
+        let hash = {
+            use std::hash::{Hash, Hasher};
+            let mut h = std::collections::hash_map::DefaultHasher::new();
+            line.hash(&mut h);
+            h.finish()
+        };
+        match keys.get(&key) {
+            Some(&(first, seen)) if seen != hash => {
+                return Err(Error::format(path, repeated_run(number, &key, first)))
+            }
+            Some(_) => {}
+            None => {
+                keys.insert(key, (number, hash));
+            }
         }
     }
-    Ok(keys)
+    Ok((keys.into_keys().collect(), experiments))
+}
+
+/// The error of a run key on two lines with different text.
+fn repeated_run(number: usize, key: &str, first: usize) -> String {
+    format!(
+        "line {number} repeats run {key} of line {first} with other figures (an edited file, or \
+         two joined?)"
+    )
 }
 
 /// A parsed result line and its text.
@@ -131,13 +166,7 @@ fn scan(path: &Path) -> Result<(Vec<Line>, u64, bool)> {
                 match first_line.get(&key) {
                     Some(&(_, at)) if lines[at].1 == t => {}
                     Some(&(first, _)) => {
-                        return Err(Error::format(
-                            path,
-                            format!(
-                                "line {number} repeats run {key} of line {first} with other \
-                                 figures (an edited file, or two joined?)"
-                            ),
-                        ))
+                        return Err(Error::format(path, repeated_run(number, &key, first)))
                     }
                     None => {
                         first_line.insert(key, (number, lines.len()));
@@ -357,11 +386,11 @@ impl ResultStore {
         must_be_a_folder(dir)?;
         let other = match experiment_name(dir)? {
             Some(other) => Some(other),
-            None => read_lines(&dir.join(RESULTS))?
-                .iter()
-                .filter_map(|(line, _)| line.get("experiment").and_then(Value::as_str))
-                .find(|&n| n != name)
-                .map(str::to_string),
+            // Streamed, as the dry run reads (only keys and names are held).
+            None => stream_keys(&dir.join(RESULTS))?
+                .1
+                .into_iter()
+                .find(|n| n != name),
         };
         match other {
             Some(other) if other != name => Err(Error::Invalid(format!(
