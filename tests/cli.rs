@@ -912,6 +912,11 @@ fn messages_name_the_option_at_fault() {
         "--out",
         sweep.to_str().unwrap(),
     ]);
+    // One frame of one mode: nothing to draw, said, and no folder claimed.
+    let out = succeeds(&["plot", sweep.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("no chart to draw"), "{stderr}");
+    assert!(!sweep.join("plots").exists());
     for command in ["plot", "table"] {
         let out = vizsim(&[
             command,

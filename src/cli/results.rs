@@ -71,7 +71,15 @@ pub fn plot(args: PlotArgs) -> Result<()> {
     let written = vizsim::output::removing_new_folder_on_error(&out, || {
         vizsim::output::all_or_none(|| vizsim::figures::write_all(&lines, &out))
     })?;
-    println!("{written} charts -> {}", out.display());
+    if written == 0 {
+        // Said, not "0 charts -> DIR" for a folder that was never made.
+        eprintln!(
+            "no chart to draw: a per-frame chart needs two frames or more, the others leaping \
+             modes or a swept field; nothing written"
+        );
+    } else {
+        println!("{written} charts -> {}", out.display());
+    }
     Ok(())
 }
 
