@@ -19,8 +19,40 @@ pub fn read_results(path: &Path) -> Result<(Vec<Value>, bool)> {
         return Err(Error::io(path, e));
     }
     let (lines, torn) = crate::experiment::store::read_lines_and_torn(path)?;
+    // A figure that is there but no number (an edited file) would be tabulated as missing.
+    for (line, _) in &lines {
+        if let Some(field) = NUMERIC_FIELDS.iter().find(|f| {
+            line.get(**f)
+                .is_some_and(|v| !(v.is_number() || v.is_null()))
+        }) {
+            return Err(Error::format(
+                path,
+                format!(
+                    "run {}: `{field}` is {}, not a number",
+                    line["key"].as_str().unwrap_or("?"),
+                    line[*field]
+                ),
+            ));
+        }
+    }
     Ok((lines.into_iter().map(|(line, _)| line).collect(), torn))
 }
+
+/// The result fields the tables and charts read as numbers (null where a run has none).
+const NUMERIC_FIELDS: [&str; 12] = [
+    "fps",
+    "cycles",
+    "steps",
+    "samples",
+    "page_hit_rate",
+    "avg_ns_per_voxel_access",
+    "discarded_after_ert",
+    "row_misses",
+    "skippable_subcubes_percent",
+    "frame_time_ns",
+    "leaps",
+    "cycles_ci95",
+];
 
 /// What a cell shows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -451,7 +483,22 @@ pub fn build(
                 .collect();
             (labels, values)
         })
-        .collect();
+        .collect::<Vec<(Vec<String>, Vec<Option<f64>>)>>();
+    // Finite values whose sum overflows (near the largest float: an edited file) would show
+    // as "inf": refused, naming the cell.
+    for (labels, values) in &rows {
+        if let Some(ci) = values
+            .iter()
+            .position(|v| v.is_some_and(|v| !v.is_finite()))
+        {
+            return Err(Error::Invalid(format!(
+                "{subject}: the mean of row {} in column {} is not finite (values near the \
+                 largest number: an edited results file?)",
+                labels.join(", "),
+                display(column_field, &column_keys[ci].1)
+            )));
+        }
+    }
     Ok(Table {
         title: format!("{subject}, {held}"),
         row_fields: row_fields.to_vec(),

@@ -1498,3 +1498,40 @@ fn charts_of_datasets_with_one_file_name_are_all_kept() {
         "{svg:.300}"
     );
 }
+
+/// Figures edited into something that is no number, or so large that their mean overflows,
+/// are refused by name rather than tabulated as missing or "inf".
+#[test]
+fn tables_refuse_figures_that_are_no_finite_number() {
+    let dir = temp_dir("edited-figures");
+    let exp = write_experiment(&dir, &step_only());
+    let out = dir.join("out");
+    let (exp_, out_) = (exp.to_str().unwrap(), out.to_str().unwrap());
+    vizsim_ok(&["sweep", exp_, "--out", out_, "--quiet"]);
+    let results = out.join("results.jsonl");
+    let text = std::fs::read_to_string(&results).unwrap();
+    let fps = text.replace("\"fps\":", "\"fps\":1.7e308,\"was\":");
+    let table = [
+        "table",
+        out_,
+        "--rows",
+        "dataset,tf,mode",
+        "--columns",
+        "ray_queue.rays",
+        "--metric",
+        "fps",
+    ];
+    std::fs::write(&results, &fps).unwrap();
+    vizsim_fails(&table, "is not finite");
+    let first = text
+        .lines()
+        .next()
+        .unwrap()
+        .replacen("\"fps\":", "\"fps\":\"fast\",\"was\":", 1);
+    let rest: String = text.lines().skip(1).map(|l| format!("{l}\n")).collect();
+    std::fs::write(&results, format!("{first}\n{rest}")).unwrap();
+    vizsim_fails(&table, "`fps` is \"fast\", not a number");
+    vizsim_fails(&["plot", out_], "`fps` is \"fast\", not a number");
+    std::fs::write(&results, &text).unwrap();
+    vizsim_ok(&table);
+}
