@@ -314,7 +314,7 @@ fn parse_spec_accepts_the_documented_forms() {
 
 #[test]
 fn parse_spec_errors_name_the_bad_part() {
-    let cases: [(&str, &[&str]); 11] = [
+    let cases: [(&str, &[&str]); 13] = [
         (
             "cubes:64",
             &["cubes", "sphere", "shells", "jet", "metaballs", "cast"],
@@ -329,6 +329,11 @@ fn parse_spec_errors_name_the_bad_part() {
         ("metaballs:64:t=nan", &["t=nan"]),
         ("metaballs:64:t=1:t=2", &["`t` given twice"]),
         ("sphere:", &["size ``"]),
+        ("sphere:16:t=1", &["`t=1`", "t= applies to metaballs, tsdf"]),
+        (
+            "shells:seed=3",
+            &["`seed=3`", "seed= applies to jet, metaballs, cast"],
+        ),
     ];
     for (text, needles) in cases {
         let error = parse_spec(text).unwrap_err();

@@ -104,7 +104,8 @@ impl PhantomKind {
         Self::ALL.into_iter().find(|kind| kind.name() == name)
     }
 
-    fn uses_seed(self) -> bool {
+    /// Whether the seed changes the volume (all but the sphere and the shells).
+    pub fn uses_seed(self) -> bool {
         !matches!(self, PhantomKind::Sphere | PhantomKind::Shells)
     }
 
@@ -208,6 +209,19 @@ pub fn parse_spec(text: &str) -> Result<PhantomSpec> {
                      then only `seed=N` or `t=F`"
                 )))
             }
+            // An option the kind ignores would name a second dataset of the same bytes.
+            Some(("seed", _)) if !kind.uses_seed() => {
+                return Err(bad(format!(
+                    "`{part}`: a {kind_name} has no random part; seed= applies to {}",
+                    kinds_where(PhantomKind::uses_seed)
+                )));
+            }
+            Some(("t", _)) if !kind.uses_time() => {
+                return Err(bad(format!(
+                    "`{part}`: a {kind_name} does not change over time; t= applies to {}",
+                    kinds_where(PhantomKind::uses_time)
+                )));
+            }
             Some(("seed", value)) if !seed_given => {
                 seed_given = true;
                 spec.seed = value
@@ -236,6 +250,16 @@ pub fn parse_spec(text: &str) -> Result<PhantomSpec> {
     let voxels = (spec.size as u64).pow(3);
     crate::budget::check(&format!("phantom `{text}`"), voxels * 2)?;
     Ok(spec)
+}
+
+/// The kinds for which `uses` holds, for messages.
+fn kinds_where(uses: fn(PhantomKind) -> bool) -> String {
+    let kinds: Vec<&str> = PhantomKind::ALL
+        .into_iter()
+        .filter(|&k| uses(k))
+        .map(PhantomKind::name)
+        .collect();
+    kinds.join(", ")
 }
 
 /// Generates the phantom. Panics if the size is outside [`SIZE_RANGE`] or the time is not
