@@ -42,6 +42,21 @@ fn write_experiment(dir: &Path, text: &str) -> PathBuf {
     path
 }
 
+/// Writes `text` as the experiment in `dir` and sweeps it into `dir/out`, which must succeed;
+/// returns the experiment file and the results folder.
+fn swept(dir: &Path, text: &str) -> (PathBuf, PathBuf) {
+    let exp = write_experiment(dir, text);
+    let out = dir.join("out");
+    vizsim_ok(&[
+        "sweep",
+        exp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    (exp, out)
+}
+
 fn vizsim(args: &[&str]) -> std::process::Output {
     Command::new(BIN).args(args).output().unwrap()
 }
@@ -877,10 +892,8 @@ fn another_experiment_into_a_used_folder_is_refused() {
 #[test]
 fn a_run_twice_in_a_results_file_is_refused_by_every_reader() {
     let dir = temp_dir("run-twice");
-    let exp = write_experiment(&dir, &step_only());
-    let out = dir.join("out");
+    let (exp, out) = swept(&dir, &step_only());
     let (exp_, out_) = (exp.to_str().unwrap(), out.to_str().unwrap());
-    vizsim_ok(&["sweep", exp_, "--out", out_, "--quiet"]);
     let results = out.join("results.jsonl");
     let text = std::fs::read_to_string(&results).unwrap();
     let second = text
@@ -1392,10 +1405,8 @@ size = "24x24"
 #[test]
 fn results_commands_write_all_their_files_or_none() {
     let dir = temp_dir("all-or-none");
-    let exp = write_experiment(&dir, &step_only().replace("orbit = 72", "orbit = 12"));
-    let out = dir.join("out");
-    let (exp_, out_) = (exp.to_str().unwrap(), out.to_str().unwrap());
-    vizsim_ok(&["sweep", exp_, "--out", out_, "--quiet"]);
+    let (_, out) = swept(&dir, &step_only().replace("orbit = 72", "orbit = 12"));
+    let out_ = out.to_str().unwrap();
     let files = |d: &Path| -> Vec<String> {
         let mut names: Vec<String> = std::fs::read_dir(d)
             .map(|e| {
@@ -1504,10 +1515,8 @@ fn charts_of_datasets_with_one_file_name_are_all_kept() {
 #[test]
 fn tables_refuse_figures_that_are_no_finite_number() {
     let dir = temp_dir("edited-figures");
-    let exp = write_experiment(&dir, &step_only());
-    let out = dir.join("out");
-    let (exp_, out_) = (exp.to_str().unwrap(), out.to_str().unwrap());
-    vizsim_ok(&["sweep", exp_, "--out", out_, "--quiet"]);
+    let (_, out) = swept(&dir, &step_only());
+    let out_ = out.to_str().unwrap();
     let results = out.join("results.jsonl");
     let text = std::fs::read_to_string(&results).unwrap();
     let fps = text.replace("\"fps\":", "\"fps\":1.7e308,\"was\":");
