@@ -21,16 +21,21 @@ pub fn read_results(path: &Path) -> Result<(Vec<Value>, bool)> {
     let (lines, torn) = crate::experiment::store::read_lines_and_torn(path)?;
     // A figure that is there but no number (an edited file) would be tabulated as missing.
     for (line, _) in &lines {
-        if let Some(field) = NUMERIC_FIELDS.iter().find(|f| {
-            line.get(**f)
-                .is_some_and(|v| !(v.is_number() || v.is_null()))
-        }) {
+        let not_a_number = <Metric as clap::ValueEnum>::value_variants()
+            .iter()
+            .flat_map(|m| m.inputs())
+            .find_map(|field| {
+                lookup(line, field)
+                    .filter(|v| !(v.is_number() || v.is_null()))
+                    .map(|v| (field, v))
+            });
+        if let Some((field, v)) = not_a_number {
             return Err(Error::format(
                 path,
                 format!(
-                    "run {}: `{field}` is {}, not a number",
+                    "run {}: `{}` is {v}, not a number",
                     line["key"].as_str().unwrap_or("?"),
-                    line[*field]
+                    field.join(".")
                 ),
             ));
         }
@@ -38,21 +43,10 @@ pub fn read_results(path: &Path) -> Result<(Vec<Value>, bool)> {
     Ok((lines.into_iter().map(|(line, _)| line).collect(), torn))
 }
 
-/// The result fields the tables and charts read as numbers (null where a run has none).
-const NUMERIC_FIELDS: [&str; 12] = [
-    "fps",
-    "cycles",
-    "steps",
-    "samples",
-    "page_hit_rate",
-    "avg_ns_per_voxel_access",
-    "discarded_after_ert",
-    "row_misses",
-    "skippable_subcubes_percent",
-    "frame_time_ns",
-    "leaps",
-    "cycles_ci95",
-];
+/// The value at a path of field names in a result line (`["stall_cycles", "memory"]`).
+fn lookup<'a>(line: &'a Value, path: &[&str]) -> Option<&'a Value> {
+    path.iter().try_fold(line, |v, name| v.get(name))
+}
 
 /// What a cell shows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -122,37 +116,48 @@ impl Metric {
         }
     }
 
+    /// The result fields the metric reads, as paths of field names: the one list both
+    /// `value` and the check that a present figure is a number (`read_results`) follow.
+    pub fn inputs(self) -> &'static [&'static [&'static str]] {
+        match self {
+            Metric::Fps => &[&["fps"]],
+            Metric::Cycles => &[&["cycles"]],
+            Metric::Steps => &[&["steps"]],
+            Metric::Samples => &[&["samples"]],
+            Metric::PageHits => &[&["page_hit_rate"]],
+            Metric::NsPerAccess => &[&["avg_ns_per_voxel_access"]],
+            Metric::DiscardedAfterErt => &[&["discarded_after_ert"]],
+            Metric::MemoryStalls => &[&["stall_cycles", "memory"]],
+            Metric::RowMisses => &[&["row_misses"]],
+            Metric::CyclesPerStep => &[&["cycles"], &["steps"]],
+            Metric::Skippable => &[&["skippable_subcubes_percent"]],
+            Metric::QueueEmpty => &[&["stall_cycles", "ray_queue_empty"]],
+            Metric::PositionsCut => &[
+                &["ray_range", "positions_cut"],
+                &["ray_range", "positions_in_box"],
+            ],
+        }
+    }
+
     /// The metric's value in one result line (None when the line's model does not have it).
     pub fn value(self, line: &Value) -> Option<f64> {
-        let field = |name: &str| line.get(name).and_then(Value::as_f64);
-        match self {
-            Metric::Fps => field("fps"),
-            Metric::Cycles => field("cycles"),
-            Metric::Steps => field("steps"),
-            Metric::Samples => field("samples"),
-            Metric::PageHits => field("page_hit_rate").map(|r| 100.0 * r),
-            Metric::NsPerAccess => field("avg_ns_per_voxel_access"),
-            Metric::DiscardedAfterErt => field("discarded_after_ert"),
-            Metric::MemoryStalls => line
-                .get("stall_cycles")
-                .and_then(|s| s.get("memory"))
-                .and_then(Value::as_f64),
-            Metric::RowMisses => field("row_misses"),
-            Metric::CyclesPerStep => {
-                let steps = field("steps")?;
-                (steps > 0.0).then(|| field("cycles").map(|c| c / steps))?
+        let inputs: Vec<Option<f64>> = self
+            .inputs()
+            .iter()
+            .map(|path| lookup(line, path).and_then(Value::as_f64))
+            .collect();
+        match (self, inputs.as_slice()) {
+            (Metric::PageHits, [rate]) => rate.map(|r| 100.0 * r),
+            (Metric::CyclesPerStep, [cycles, steps]) => {
+                let steps = (*steps)?;
+                (steps > 0.0).then(|| cycles.map(|c| c / steps))?
             }
-            Metric::Skippable => field("skippable_subcubes_percent"),
-            Metric::QueueEmpty => line
-                .get("stall_cycles")
-                .and_then(|s| s.get("ray_queue_empty"))
-                .and_then(Value::as_f64),
-            Metric::PositionsCut => {
-                let r = line.get("ray_range")?;
-                let cut = r.get("positions_cut").and_then(Value::as_f64)?;
-                let total = r.get("positions_in_box").and_then(Value::as_f64)?;
-                (total > 0.0).then(|| 100.0 * cut / total)
+            (Metric::PositionsCut, [cut, total]) => {
+                let total = (*total)?;
+                (total > 0.0).then(|| cut.map(|c| 100.0 * c / total))?
             }
+            (_, [figure]) => *figure,
+            _ => unreachable!("every metric with several inputs is combined above"),
         }
     }
 }
@@ -751,6 +756,45 @@ mod tests {
         let error = read_results(&path).unwrap_err().to_string();
         assert!(error.contains("line 1"), "{error}");
         assert!(read_results(&dir.join("missing.jsonl")).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Every field a metric reads, nested ones included, is refused when present but no
+    /// number (an edited `stall_cycles.memory` used to be tabulated as missing), and each
+    /// metric reads a line holding only its inputs.
+    #[test]
+    fn a_figure_any_metric_reads_must_be_a_number() {
+        use clap::ValueEnum;
+        let dir = std::env::temp_dir().join(format!("vizsim-nan-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("results.jsonl");
+        for metric in Metric::value_variants() {
+            let mut only_inputs = serde_json::json!({"key": "a"});
+            for field in metric.inputs() {
+                let mut at = &mut only_inputs;
+                for name in &field[..field.len() - 1] {
+                    at = at
+                        .as_object_mut()
+                        .unwrap()
+                        .entry(*name)
+                        .or_insert(serde_json::json!({}));
+                }
+                at[field[field.len() - 1]] = 2.0.into();
+            }
+            assert!(metric.value(&only_inputs).is_some(), "{metric:?}");
+            for field in metric.inputs() {
+                let mut edited = only_inputs.clone();
+                let at = field.iter().fold(&mut edited, |v, name| &mut v[*name]);
+                *at = "lots".into();
+                std::fs::write(&path, format!("{edited}\n")).unwrap();
+                let error = read_results(&path).unwrap_err().to_string();
+                let named = format!("`{}` is \"lots\", not a number", field.join("."));
+                assert!(error.contains(&named), "{metric:?}: {error}");
+                *field.iter().fold(&mut edited, |v, name| &mut v[*name]) = serde_json::Value::Null;
+                std::fs::write(&path, format!("{edited}\n")).unwrap();
+                assert!(read_results(&path).is_ok(), "{metric:?}: null is allowed");
+            }
+        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
