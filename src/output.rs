@@ -113,6 +113,20 @@ pub fn place_finished(tmp: &Path, path: &Path) -> Result<()> {
 /// The temporary name a file is written under before it is renamed to `path`: hidden, in the
 /// same folder (created if missing), so the rename never crosses file systems.
 fn temporary_path(path: &Path) -> Result<std::path::PathBuf> {
+    temporary_path_ending(path, "")
+}
+
+/// `temporary_path` ending in `path`'s own extension (`.chart.png.tmp123.png`), for writers
+/// that choose the format by the extension (plotters' bitmap backend); cleaned up alike.
+pub fn temporary_path_keeping_extension(path: &Path) -> Result<std::path::PathBuf> {
+    let ending = match path.extension() {
+        Some(ext) => format!(".{}", ext.to_string_lossy()),
+        None => String::new(),
+    };
+    temporary_path_ending(path, &ending)
+}
+
+fn temporary_path_ending(path: &Path, ending: &str) -> Result<std::path::PathBuf> {
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => std::path::PathBuf::from("."),
@@ -122,14 +136,14 @@ fn temporary_path(path: &Path) -> Result<std::path::PathBuf> {
         .file_name()
         .ok_or_else(|| Error::Invalid(format!("{}: not a file path", path.display())))?;
     let prefix = format!(".{}.tmp", file_name.to_string_lossy());
-    remove_stale_temporaries(&dir, &prefix);
-    Ok(dir.join(format!("{prefix}{}", std::process::id())))
+    remove_stale_temporaries(&dir, &prefix, ending);
+    Ok(dir.join(format!("{prefix}{}{ending}", std::process::id())))
 }
 
 /// Removes temporaries of earlier writes to the same path whose process is gone (a kill -9
 /// during a write leaves one). Only where /proc tells which processes live; a temporary of a
 /// live process (a concurrent write) is left alone.
-fn remove_stale_temporaries(dir: &Path, prefix: &str) {
+fn remove_stale_temporaries(dir: &Path, prefix: &str, ending: &str) {
     let proc = Path::new("/proc");
     if !proc.join("self").exists() {
         return;
@@ -142,6 +156,7 @@ fn remove_stale_temporaries(dir: &Path, prefix: &str) {
         let Some(pid) = name
             .to_str()
             .and_then(|n| n.strip_prefix(prefix))
+            .and_then(|p| p.strip_suffix(ending))
             .and_then(|p| p.parse::<u32>().ok())
         else {
             continue;

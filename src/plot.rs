@@ -202,11 +202,9 @@ impl LineChart<'_> {
         let layout = self.layout();
         // plotters writes to a path itself: draw into temporary names, then rename, so an error
         // never leaves a half-drawn chart under the real name.
-        let tmp_png = with_suffix(stem, "tmp.png");
-        let tmp_svg = with_suffix(stem, "tmp.svg");
-        if let Some(dir) = stem.parent() {
-            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-        }
+        // (hidden, with this process's id, so a later run removes what a kill left behind).
+        let tmp_png = crate::output::temporary_path_keeping_extension(&png)?;
+        let tmp_svg = crate::output::temporary_path_keeping_extension(&svg)?;
         let result = (|| -> std::result::Result<(), String> {
             self.draw(
                 BitMapBackend::new(&tmp_png, layout.size).into_drawing_area(),

@@ -178,6 +178,48 @@ fn stale_temporaries_of_a_killed_write_are_cleaned_on_the_next_write() {
     running.wait().unwrap();
 }
 
+/// Charts are drawn under temporaries that carry the process id and keep the extension
+/// (plotters picks the format by it); one a killed `plot` left is removed by the next chart
+/// written to the same name, and nothing but the chart is left.
+#[test]
+fn a_chart_killed_while_drawing_leaves_nothing_the_next_run_keeps() {
+    if !std::path::Path::new("/proc/self").exists() {
+        eprintln!("skipped: no /proc to tell live processes");
+        return;
+    }
+    let dir = scratch("stale-chart-tmp");
+    let mut gone = Command::new("true").spawn().unwrap();
+    let dead_pid = gone.id();
+    gone.wait().unwrap();
+    let stale = [
+        dir.join(format!(".c.png.tmp{dead_pid}.png")),
+        dir.join(format!(".c.svg.tmp{dead_pid}.svg")),
+    ];
+    for f in &stale {
+        std::fs::write(f, b"half a chart").unwrap();
+    }
+    vizsim::plot::LineChart {
+        title: "t",
+        x_label: "x",
+        y_label: "y",
+        series: vec![vizsim::plot::Series {
+            name: "s".into(),
+            points: vec![(1.0, 2.0), (2.0, 3.0)],
+        }],
+        log_y: false,
+    }
+    .write(&dir.join("c"))
+    .unwrap();
+    let mut left: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["c.png", "c.svg"]);
+    let png = std::fs::read(dir.join("c.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG"), "drawn as PNG");
+}
+
 /// A dataset with no preset transfer function fails the sweep's validation, dry run or not,
 /// before anything is written (issue 17, item 7: the real run used to fail after writing the
 /// lock, the resolved experiment and empty result files).
