@@ -524,6 +524,8 @@ pub fn build(
 /// a column reads one way (all in millions, or all with the same decimals).
 #[derive(Clone, Copy)]
 enum NumberFormat {
+    /// Beyond any real frame's figure (an edited or corrupt result): `1.700e308`, not 300 digits.
+    Scientific,
     Millions,
     Whole,
     Decimals(usize),
@@ -532,7 +534,9 @@ enum NumberFormat {
 impl NumberFormat {
     fn for_values(values: impl Iterator<Item = f64>) -> NumberFormat {
         let largest = values.map(f64::abs).fold(0.0, f64::max);
-        if largest >= 1e6 {
+        if largest >= 1e12 {
+            NumberFormat::Scientific
+        } else if largest >= 1e6 {
             NumberFormat::Millions
         } else if largest >= 1000.0 {
             NumberFormat::Whole
@@ -545,6 +549,7 @@ impl NumberFormat {
 
     fn write(self, v: f64) -> String {
         match self {
+            NumberFormat::Scientific => format!("{v:.3e}"),
             NumberFormat::Millions => format!("{:.2} M", v / 1e6),
             NumberFormat::Whole => format!("{v:.0}"),
             NumberFormat::Decimals(d) => format!("{v:.d$}"),
@@ -796,6 +801,21 @@ mod tests {
             }
         }
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A column reads one way, chosen by its largest figure; a figure beyond any real frame's
+    /// (1.7e308 edited into a result) is written in scientific notation, not as 300 digits.
+    #[test]
+    fn a_column_is_written_in_one_format_chosen_by_its_largest_figure() {
+        let written = |values: &[f64]| -> Vec<String> {
+            let format = super::NumberFormat::for_values(values.iter().copied());
+            values.iter().map(|&v| format.write(v)).collect()
+        };
+        assert_eq!(written(&[1.5, 12.25]), ["1.50", "12.25"]);
+        assert_eq!(written(&[1.5, 120.25]), ["1.5", "120.2"]);
+        assert_eq!(written(&[1.5, 4096.0]), ["2", "4096"]);
+        assert_eq!(written(&[2.5e5, 4.35e6]), ["0.25 M", "4.35 M"]);
+        assert_eq!(written(&[4.35e6, 1.7e308]), ["4.350e6", "1.700e308"]);
     }
 
     /// A result line of the cycle model: one frame of `mode`, sampled or exact.
