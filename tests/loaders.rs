@@ -668,6 +668,11 @@ fn nrrd_other_header_errors() {
             "neither a field",
         ),
         (&["sizes: 2 2 2", "data file: LIST"], "several data files"),
+        // The list's file names follow on the next lines; they are not called malformed.
+        (
+            &["data file: LIST", "a.raw", "b.raw", "sizes: 2 2 2"],
+            "several data files",
+        ),
         (
             &["sizes: 2 2 2", "data file: s%03d.raw 1 4 1"],
             "several data files",

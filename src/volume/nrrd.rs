@@ -161,6 +161,11 @@ fn parse_line(
     if fields.insert(canonical, value.trim().to_string()).is_some() {
         return Err(format!("field `{canonical}` given twice"));
     }
+    // `data file: LIST` is followed by file names, not fields: say what is unsupported
+    // before those lines are read as malformed ones.
+    if canonical == "data file" {
+        check_single_data_file(value.trim())?;
+    }
     Ok(())
 }
 
