@@ -372,8 +372,11 @@ pub struct Candidate {
     pub hierarchy: bool,
     /// SRAM bits the occupancy map needs (map candidates).
     pub map_bits: Option<u64>,
-    /// The map fits `occupancy.sram_bits` (always true without a map).
+    /// The configuration fits the hardware: its map `occupancy.sram_bits`, and the volume with
+    /// its distance array (distance candidates) the SDRAM's `memory.rows`.
     pub fits: bool,
+    /// Why it does not fit, as the cycle model would refuse it (None when it fits).
+    pub misfit: Option<String>,
     /// Empty sub-cubes of the map, percent.
     pub skippable_percent: Option<f64>,
     /// Mean per frame at the run's image size (scaled from the reduced image).
@@ -536,21 +539,41 @@ pub fn advise(base: &RunDescription, volume: &Volume, options: &AdviseOptions) -
         cost.distance_modules = distance_module_spread(base, volume, &options.views)?;
     }
     let sram_bits = base.hardware.occupancy.sram_bits;
+    // The memory the cycle model would check (`run::prepare`): the volume alone must fit for
+    // any configuration to run; a distance array doubles the rows (without blocking).
+    let memory_fit = |distance: bool| -> Result<()> {
+        if base.hardware.blocking.enabled {
+            return Ok(());
+        }
+        base.hardware
+            .memory
+            .check_covers_with(volume.dims, distance, "hardware configuration")
+    };
+    memory_fit(false)?;
     let mut transfer_function = String::new();
     let mut ranking = Vec::new();
     let mut widest_distance: Option<crate::leapvalues::DistanceVolume> = None;
     for mode in candidate_modes(volume.dims, &options.structures) {
         let mut hardware = apply_mode(&base.hardware, &mode, &base.tf);
-        let (map_bits, fits) = if mode.subcube > 0 {
+        // A configuration that does not fit is predicted anyway (with the SRAM raised) so the
+        // ranking shows what a larger memory would gain; it is never recommended.
+        let (map_bits, misfit) = if mode.subcube > 0 {
             let bits = map_bits(volume.dims, mode.subcube, mode.hierarchy);
             if bits > sram_bits {
-                // Predicted anyway (with the SRAM raised) so the ranking shows what a larger
-                // SRAM would gain; never recommended.
                 hardware.occupancy.sram_bits = bits.next_power_of_two();
             }
-            (Some(bits), bits <= sram_bits)
+            let misfit = (bits > sram_bits).then(|| {
+                format!("its map needs {bits} bits, `occupancy.sram_bits` is {sram_bits}")
+            });
+            (Some(bits), misfit)
+        } else if mode.distance_bits > 0 {
+            let misfit = memory_fit(true).err().map(|e| match e {
+                Error::Config { message, .. } => format!("{message} (`memory.rows`)"),
+                other => other.to_string(),
+            });
+            (None, misfit)
         } else {
-            (None, true)
+            (None, None)
         };
         let run = RunDescription {
             model: Model::Step,
@@ -616,7 +639,8 @@ pub fn advise(base: &RunDescription, volume: &Volume, options: &AdviseOptions) -
             subcube: mode.subcube,
             hierarchy: mode.hierarchy,
             map_bits,
-            fits,
+            fits: misfit.is_none(),
+            misfit,
             skippable_percent: skippable,
             steps,
             samples,
@@ -1084,10 +1108,10 @@ pub fn advice_text(advice: &Advice) -> String {
         r.speedup_over_ert,
         match advice.ranking.first() {
             Some(top) if !top.fits => format!(
-                "; {} would be {:.0} % faster but its map needs {} bits",
+                "; {} would be {:.0} % faster but {}",
                 top.label,
                 100.0 * (top.predicted_fps / r.predicted_fps - 1.0),
-                top.map_bits.unwrap_or(0)
+                top.misfit.as_deref().unwrap_or("it does not fit")
             ),
             _ => String::new(),
         },

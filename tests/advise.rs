@@ -91,6 +91,67 @@ fn never_recommends_a_map_that_does_not_fit() {
     }
 }
 
+/// "fits" is what the cycle model accepts: a distance array that doubles the volume's SDRAM
+/// rows past `memory.rows` is never recommended (a probe found one recommended that `sim`
+/// then refused), and every candidate fits exactly when the cycle model prepares its run.
+#[test]
+fn fits_exactly_when_the_cycle_model_accepts_the_run() {
+    let dataset = "phantom:cast:64";
+    let volume = dataset::load(dataset, None).unwrap();
+    let needs = |distance: bool| {
+        let rows = HardwareConfig::load(None, &[]).unwrap().memory;
+        (1..=4096)
+            .find(|&r| {
+                let mut m = rows.clone();
+                m.rows = r;
+                m.check_covers_with(volume.dims, distance, "t").is_ok()
+            })
+            .unwrap()
+    };
+    assert_eq!(needs(true), 2 * needs(false));
+    for (rows, sram_bits) in [
+        (needs(false), 32),
+        (needs(true), 32),
+        (needs(false), 1 << 20),
+    ] {
+        let mut run = base(dataset, "class", (32, 32), Some(sram_bits));
+        run.hardware.memory.rows = rows;
+        let all = vec![Structure::Map, Structure::Distance, Structure::LeapValues];
+        let advice = advise::advise(&run, &volume, &options(1, (16, 16), all.clone())).unwrap();
+        let modes = advise::candidate_modes(volume.dims, &all);
+        for c in &advice.ranking {
+            let mode = modes.iter().find(|m| m.name() == c.mode).unwrap();
+            let cycle = RunDescription {
+                model: Model::Cycle,
+                hardware: advise::apply_mode(&run.hardware, mode, "class"),
+                ..run.clone()
+            };
+            let accepted = run::prepare(&cycle, &volume);
+            assert_eq!(
+                c.fits,
+                accepted.is_ok(),
+                "rows {rows}, {} bits: {c:?}: {:?}",
+                sram_bits,
+                accepted.err().map(|e| e.to_string())
+            );
+            assert_eq!(c.fits, c.misfit.is_none(), "{c:?}");
+        }
+        assert!(advice.recommended().fits);
+        let distance_fits = advice
+            .ranking
+            .iter()
+            .any(|c| c.mode == "ert+distance8" && c.fits);
+        assert_eq!(distance_fits, rows == needs(true), "rows {rows}");
+    }
+    // Too few rows for the volume itself: no configuration runs, and advise says why.
+    let mut run = base(dataset, "class", (32, 32), None);
+    run.hardware.memory.rows = needs(false) - 1;
+    let error = advise::advise(&run, &volume, &options(1, (16, 16), vec![Structure::Map]))
+        .unwrap_err()
+        .to_string();
+    assert!(error.contains("memory.rows"), "{error}");
+}
+
 #[test]
 fn full_image_steps_equal_the_functional_model() {
     let spec = "phantom:metaballs:32";
