@@ -250,8 +250,10 @@ fn mean_over_frames(
             if p.configurations.len() > 1 {
                 let mixed: Vec<&String> = p.configurations.iter().take(2).collect();
                 return Err(Error::Invalid(format!(
-                    "chart {chart}: a point of `{name}` would average over configurations ({} and {})",
-                    mixed[0], mixed[1]
+                    "chart {chart}: a point of `{}` would average over configurations ({} and {})",
+                    name.rsplit('\u{0}').next().unwrap_or_default(),
+                    mixed[0],
+                    mixed[1]
                 )));
             }
             counts.insert(p.frames.len());
@@ -454,12 +456,27 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                     |l| {
                         let tf = text(l, "tf");
                         let hierarchy = l["hierarchy"] == Value::Bool(true);
+                        // What the mode adds to its map (bricks, iso, ...) makes a series of
+                        // its own: `ert+leap8+bricks16` is not a point of `ert+leap8`'s line.
+                        let mode = text(l, "mode");
+                        let extras: String = mode
+                            .split('+')
+                            .filter(|t| {
+                                *t != "ert"
+                                    && *t != "hier"
+                                    && !t
+                                        .strip_prefix("leap")
+                                        .is_some_and(|n| n.parse::<u32>().is_ok())
+                            })
+                            .map(|t| format!(" + {t}"))
+                            .collect();
                         // Sorted: '0' before class, each without the hierarchy first.
                         Some(format!(
-                            "{}{tf}\u{0}{}\u{0}{}",
+                            "{}{tf}\u{0}{}{extras}\u{0}{}{}{extras}",
                             (tf != "zero") as u8,
                             hierarchy as u8,
-                            tf_label(&tf).to_string() + if hierarchy { " + hierarchy" } else { "" }
+                            tf_label(&tf),
+                            if hierarchy { " + hierarchy" } else { "" }
                         ))
                     },
                     |l| num(l, "subcube").map(f64::log2),

@@ -264,6 +264,34 @@ fn a_text_valued_field_is_a_category_axis() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A map mode with bricks or an iso-surface beside plain maps of several sizes is a series of
+/// its own in the chart against the sub-cube size (a probe found `plot` refusing the whole
+/// folder: the 8³ point would have averaged `ert+leap8` with `ert+leap8+bricks16`).
+#[test]
+fn what_a_mode_adds_to_its_map_is_a_series_of_its_own() {
+    let dir = scratch("map-extras");
+    let mut lines = Vec::new();
+    for (m, mode) in [
+        "ert",
+        "ert+leap4",
+        "ert+leap8",
+        "ert+leap8+bricks16",
+        "ert+leap8+iso4",
+    ]
+    .iter()
+    .enumerate()
+    {
+        lines.push(line(mode, 0, json!({}), 100.0 + m as f64, 40.0));
+    }
+    vizsim::figures::write_all(&lines, &dir).unwrap();
+    let text = svg(&dir, "cycle-fps-vs-subcube-phantom-sphere-64");
+    let labels: BTreeSet<&str> = text.lines().map(str::trim).collect();
+    for name in ["class", "class + bricks16", "class + iso4"] {
+        assert!(labels.contains(name), "{name} in {text}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn a_series_of_one_point_is_drawn() {
     let dir = scratch("one-point");
