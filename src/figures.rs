@@ -464,9 +464,8 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                             .filter(|t| {
                                 *t != "ert"
                                     && *t != "hier"
-                                    && !t
-                                        .strip_prefix("leap")
-                                        .is_some_and(|n| n.parse::<u32>().is_ok())
+                                    && t.strip_prefix("leap")
+                                        .is_none_or(|n| n.parse::<u32>().is_err())
                             })
                             .map(|t| format!(" + {t}"))
                             .collect();
