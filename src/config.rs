@@ -551,16 +551,37 @@ impl HardwareConfig {
 
     /// Reads a file (or the embedded default when `path` is None) and applies `--set` overrides.
     pub fn load(path: Option<&Path>, overrides: &[String]) -> Result<HardwareConfig> {
+        let shown: Vec<String> = overrides.iter().map(|o| format!("--set {o}")).collect();
+        Self::load_shown(path, overrides, &shown)
+    }
+
+    /// `load`, with each override named in messages as `shown` says (`--subcube 8` for the
+    /// flag that set `occupancy.subcube=8`), so an error names what the user typed.
+    pub fn load_shown(
+        path: Option<&Path>,
+        overrides: &[String],
+        shown: &[String],
+    ) -> Result<HardwareConfig> {
         match path {
             Some(p) => {
                 let text = crate::input::read_text(p)?;
-                Self::from_toml_str(&text, &p.display().to_string(), overrides)
+                Self::from_toml_str_shown(&text, &p.display().to_string(), overrides, shown)
             }
-            None => Self::from_toml_str(DEFAULT_TOML, DEFAULT_NAME, overrides),
+            None => Self::from_toml_str_shown(DEFAULT_TOML, DEFAULT_NAME, overrides, shown),
         }
     }
 
     pub fn from_toml_str(text: &str, source: &str, overrides: &[String]) -> Result<HardwareConfig> {
+        let shown: Vec<String> = overrides.iter().map(|o| format!("--set {o}")).collect();
+        Self::from_toml_str_shown(text, source, overrides, &shown)
+    }
+
+    fn from_toml_str_shown(
+        text: &str,
+        source: &str,
+        overrides: &[String],
+        shown: &[String],
+    ) -> Result<HardwareConfig> {
         let mut table: toml::Table = text
             .parse()
             .map_err(|e| Error::format(source, format!("invalid TOML: {e}")))?;
@@ -573,7 +594,7 @@ impl HardwareConfig {
         let source_name = if overrides.is_empty() {
             source.to_string()
         } else {
-            format!("{source} with --set {}", overrides.join(" --set "))
+            format!("{source} with {}", shown.join(" "))
         };
         let config: HardwareConfig = table
             .try_into()
@@ -732,6 +753,23 @@ impl HardwareConfig {
                 format!(
                     "{} is not allowed; allowed {DISTANCE_BITS_ALLOWED:?}",
                     o.distance_bits
+                ),
+            ));
+        }
+        // The other structures have no sub-cubes: a size given with them would be shown as
+        // set ("differs ... occupancy.subcube = 8") while nothing used it.
+        if o.structure != LeapStructure::Map && o.subcube > 0 {
+            return Err(Error::config(
+                source,
+                "occupancy.subcube",
+                format!(
+                    "{} needs occupancy.structure = \"map\"; the {} has no sub-cubes (leave \
+                     occupancy.subcube at 0)",
+                    o.subcube,
+                    match o.structure {
+                        LeapStructure::Distance => "distance volume",
+                        _ => "leap-value volume",
+                    }
                 ),
             ));
         }

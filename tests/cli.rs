@@ -1348,3 +1348,97 @@ fn precision_writes_its_report_together_or_not_at_all() {
     );
     assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 9);
 }
+
+/// A leaping flag and a `--set` of the same field are refused rather than one silently winning
+/// (a probe found `--bricks 8 --set bricks.size=16` running with 8 and `--no-ert --set
+/// compositing.ert=true` without ERT); a flag's error names the flag as typed, not the `--set`
+/// it stands for; a sub-cube size with a structure that has none, and `--occupancy` without a
+/// map, are refused.
+#[test]
+fn flags_and_settings_that_contradict_or_do_nothing_are_refused() {
+    let out = scratch("contradicting").join("x.json");
+    let out_ = out.to_str().unwrap();
+    let sim = |extra: &[&str]| -> Vec<String> {
+        let mut args = vec![
+            "sim",
+            "--dataset",
+            "phantom:sphere:16",
+            "--size",
+            "8x8",
+            "--output",
+            out_,
+        ];
+        args.extend_from_slice(extra);
+        args.iter().map(|a| a.to_string()).collect()
+    };
+    for (extra, needles) in [
+        (
+            &["--bricks", "8", "--set", "bricks.size=16"][..],
+            &[
+                "--bricks 8",
+                "--set bricks.size=16",
+                "both set `bricks.size`",
+            ][..],
+        ),
+        (
+            &["--no-ert", "--set", "compositing.ert=true"],
+            &["--no-ert", "both set `compositing.ert`"],
+        ),
+        (
+            &["--subcube", "8", "--set", "occupancy.subcube = 16"],
+            &["--subcube 8", "both set `occupancy.subcube`"],
+        ),
+        (
+            &[
+                "--hierarchy",
+                "--subcube",
+                "8",
+                "--set",
+                "occupancy.hierarchy=false",
+            ],
+            &["--hierarchy", "both set `occupancy.hierarchy`"],
+        ),
+        (
+            &[
+                "--occupancy",
+                "zero",
+                "--set",
+                "occupancy.kind=class",
+                "--subcube",
+                "4",
+            ],
+            &["--occupancy zero", "both set `occupancy.kind`"],
+        ),
+        (
+            &["--subcube", "7"],
+            &["with --subcube 7:", "occupancy.subcube"],
+        ),
+        (
+            &["--subcube", "8", "--set", "occupancy.structure=distance"],
+            &["occupancy.subcube", "has no sub-cubes"],
+        ),
+        (
+            &["--occupancy", "zero"],
+            &["--occupancy", "no occupancy map"],
+        ),
+    ] {
+        let args = sim(extra);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        assert_fails(&args, needles, &out);
+        let stderr = String::from_utf8_lossy(&vizsim(&args).stderr).into_owned();
+        if extra.contains(&"7") {
+            assert!(!stderr.contains("--set"), "{stderr}");
+        }
+    }
+    // The same settings without the contradiction run.
+    for extra in [
+        &["--bricks", "8"][..],
+        &["--set", "bricks.size=16"],
+        &["--occupancy", "zero", "--subcube", "4"],
+        &["--set", "occupancy.structure=distance"],
+    ] {
+        let args = sim(extra);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        succeeds(&args);
+    }
+}

@@ -566,11 +566,10 @@ fn configurations_the_update_model_does_not_model_are_refused() {
             "bricks.size",
         ),
         (
-            sequence(&["--subcube", "4", "--set", "occupancy.structure=distance"]),
+            sequence(&["--map", "none", "--set", "occupancy.structure=distance"]),
             "occupancy.structure",
         ),
         (update(&blocking), "blocking.enabled"),
-        (update(&leap_values), "occupancy.structure"),
         (update(&["--bricks", "8"]), "bricks.size"),
         (update(&["--set", "bricks.size=8"]), "bricks.size"),
         (update(&["--hierarchy"]), "occupancy.hierarchy"),
@@ -592,6 +591,16 @@ fn configurations_the_update_model_does_not_model_are_refused() {
         }
         assert!(out.stdout.is_empty(), "{args:?} printed before refusing");
     }
+    // `update` needs a map's sub-cube size, which the other structures do not have: the
+    // configuration itself is refused, naming the field.
+    let args = update(&leap_values);
+    let out = vizsim(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{args:?} succeeded");
+    assert!(
+        stderr.contains("occupancy.subcube") && stderr.contains("has no sub-cubes"),
+        "{stderr}"
+    );
     // The hierarchy is the map's byte layout: a sequence models it (its bits are written one
     // per cycle either way).
     let out = vizsim(

@@ -96,7 +96,7 @@ enum Command {
     /// pass, a transfer-function change and a partial update, in cycles (docs/dynamic.md).
     #[command(
         mut_arg("subcube", |arg| arg
-            .help("Edge of the occupancy maps' sub-cubes (2..64), required (here, or occupancy.subcube by --set or --config): the maps whose costs are measured")),
+            .help("Edge of the occupancy maps' sub-cubes (2, 4, 8, 16, 32 or 64), required (here, or occupancy.subcube by --set or --config): the maps whose costs are measured")),
         mut_arg("hierarchy", not_listed),
         mut_arg("occupancy", not_listed),
         mut_arg("bricks", not_listed)
@@ -106,7 +106,7 @@ enum Command {
     /// per step update, map and render cycles, and the frames per second (docs/dynamic.md).
     #[command(
         mut_arg("subcube", |arg| arg.help(
-            "Edge of the occupancy map's sub-cubes (2..64), required (here, or occupancy.subcube by --set or --config) unless --map none"
+            "Edge of the occupancy map's sub-cubes (2, 4, 8, 16, 32 or 64), required (here, or occupancy.subcube by --set or --config) unless --map none"
         )),
         mut_arg("bricks", not_listed)
     )]
@@ -263,7 +263,7 @@ impl FrameArgs {
     pub fn describe(&self, model: Model, hardware: &HardwareArgs) -> Result<RunDescription> {
         let mut extra = Vec::new();
         if self.no_ert {
-            extra.push("compositing.ert=false".to_string());
+            extra.push(("compositing.ert=false".to_string(), "--no-ert".to_string()));
         }
         let config = hardware.load(&extra)?;
         let run = RunDescription {
@@ -288,7 +288,7 @@ pub struct HardwareArgs {
     /// Override a configuration field, validated like the file: --set skip.reciprocal_bits=6.
     #[arg(long = "set", value_name = "FIELD=VALUE")]
     pub overrides: Vec<String>,
-    /// Space leaping with sub-cubes of this edge (2..64); without it, no leaping.
+    /// Space leaping with sub-cubes of this edge (2, 4, 8, 16, 32 or 64); without it, no leaping.
     #[arg(long)]
     pub subcube: Option<usize>,
     /// Two-level occupancy hierarchy (2x2x2 sub-cubes per byte).
@@ -297,7 +297,7 @@ pub struct HardwareArgs {
     /// Which occupancy map: '0' (`zero`) or `class`.
     #[arg(long, value_enum)]
     pub occupancy: Option<OccupancyArg>,
-    /// Bounding bricks of this edge (4..32): each ray starts at its first active brick and ends
+    /// Bounding bricks of this edge (4, 8, 16 or 32): each ray starts at its first active brick and ends
     /// after its last (the same as --set bricks.size=N; all three models).
     #[arg(long)]
     pub bricks: Option<usize>,
@@ -306,22 +306,46 @@ pub struct HardwareArgs {
 impl HardwareArgs {
     /// The configuration file with --set, then the leaping flags and `extra` applied as
     /// overrides too, so every value goes through the same validation.
-    pub fn load(&self, extra: &[String]) -> Result<HardwareConfig> {
-        let mut overrides = self.overrides.clone();
+    /// `extra` are flags of the frame as (override, the flag as typed): `--no-ert`.
+    pub fn load(&self, extra: &[(String, String)]) -> Result<HardwareConfig> {
+        let mut flags: Vec<(String, String)> = Vec::new();
         if let Some(s) = self.subcube {
-            overrides.push(format!("occupancy.subcube={s}"));
+            flags.push((format!("occupancy.subcube={s}"), format!("--subcube {s}")));
         }
         if self.hierarchy {
-            overrides.push("occupancy.hierarchy=true".into());
+            flags.push(("occupancy.hierarchy=true".into(), "--hierarchy".into()));
         }
         if let Some(kind) = self.occupancy {
-            overrides.push(format!("occupancy.kind={}", kind.toml_name()));
+            flags.push((
+                format!("occupancy.kind={}", kind.toml_name()),
+                format!("--occupancy {}", kind.cli_name()),
+            ));
         }
         if let Some(b) = self.bricks {
-            overrides.push(format!("bricks.size={b}"));
+            flags.push((format!("bricks.size={b}"), format!("--bricks {b}")));
         }
-        overrides.extend(extra.iter().cloned());
-        let config = HardwareConfig::load(self.config.as_deref(), &overrides);
+        flags.extend(extra.iter().cloned());
+        // A flag and a --set of the same field: which one wins would be a silent choice.
+        for (assignment, flag) in &flags {
+            let field = |a: &str| a.split('=').next().unwrap_or_default().trim().to_string();
+            if let Some(set) = self
+                .overrides
+                .iter()
+                .find(|o| field(o) == field(assignment))
+            {
+                anyhow::bail!(
+                    "{flag} and --set {set} both set `{}`; give one of them",
+                    field(assignment)
+                );
+            }
+        }
+        let mut overrides = self.overrides.clone();
+        let mut shown: Vec<String> = overrides.iter().map(|o| format!("--set {o}")).collect();
+        for (assignment, flag) in flags {
+            overrides.push(assignment);
+            shown.push(flag);
+        }
+        let config = HardwareConfig::load_shown(self.config.as_deref(), &overrides, &shown);
         let config = match &self.config {
             Some(path) => config.with_context(|| format!("--config {}", path.display()))?,
             None => config?,
@@ -333,6 +357,13 @@ impl HardwareArgs {
                 || occupancy.structure != vizsim::config::LeapStructure::Map,
             "--hierarchy: there is no occupancy map to build it on (give --subcube N, or \
              occupancy.subcube in the configuration)"
+        );
+        anyhow::ensure!(
+            self.occupancy.is_none()
+                || occupancy.subcube > 0
+                || occupancy.structure != vizsim::config::LeapStructure::Map,
+            "--occupancy: there is no occupancy map for it to choose (give --subcube N, or \
+             occupancy.subcube in the configuration); without one nothing leaps"
         );
         Ok(config)
     }
@@ -372,6 +403,13 @@ impl OccupancyArg {
         match self {
             OccupancyArg::Zero => "\"zero\"",
             OccupancyArg::Class => "\"class\"",
+        }
+    }
+
+    fn cli_name(self) -> &'static str {
+        match self {
+            OccupancyArg::Zero => "zero",
+            OccupancyArg::Class => "class",
         }
     }
 }
