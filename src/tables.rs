@@ -65,8 +65,12 @@ pub enum Metric {
     NsPerAccess,
     /// Samples discarded after ERT (cycle model).
     DiscardedAfterErt,
-    /// Memory stall cycles (cycle model).
+    /// Memory stall cycles: the selected sample's address FIFOs were full (cycle model). A
+    /// ray waiting for its distance or leap-value word is `leap-word-waits`.
     MemoryStalls,
+    /// Cycles every ray waited for a distance word or its last sample's leap values (cycle
+    /// model; distance volume and leap values, 0 for the others).
+    LeapWordWaits,
     /// SDRAM row misses, i.e. page reloads (cycle model).
     RowMisses,
     /// Clock cycles per step: 1 is the ideal of one step per clock (cycle model).
@@ -90,6 +94,7 @@ impl Metric {
             Metric::NsPerAccess => "ns per voxel access",
             Metric::DiscardedAfterErt => "samples discarded after ERT per frame",
             Metric::MemoryStalls => "memory stall cycles per frame",
+            Metric::LeapWordWaits => "cycles waiting for distance or leap-value words per frame",
             Metric::RowMisses => "row misses (page reloads) per frame",
             Metric::CyclesPerStep => "cycles per step",
             Metric::Skippable => "skippable sub-cubes (%)",
@@ -108,6 +113,7 @@ impl Metric {
             Metric::NsPerAccess => "ns-per-access",
             Metric::DiscardedAfterErt => "discarded-after-ert",
             Metric::MemoryStalls => "memory-stalls",
+            Metric::LeapWordWaits => "leap-word-waits",
             Metric::RowMisses => "row-misses",
             Metric::CyclesPerStep => "cycles-per-step",
             Metric::Skippable => "skippable",
@@ -128,6 +134,10 @@ impl Metric {
             Metric::NsPerAccess => &[&["avg_ns_per_voxel_access"]],
             Metric::DiscardedAfterErt => &[&["discarded_after_ert"]],
             Metric::MemoryStalls => &[&["stall_cycles", "memory"]],
+            Metric::LeapWordWaits => &[
+                &["stall_cycles", "distance_word"],
+                &["stall_cycles", "leap_word"],
+            ],
             Metric::RowMisses => &[&["row_misses"]],
             Metric::CyclesPerStep => &[&["cycles"], &["steps"]],
             Metric::Skippable => &[&["skippable_subcubes_percent"]],
@@ -152,6 +162,10 @@ impl Metric {
                 let steps = (*steps)?;
                 (steps > 0.0).then(|| cycles.map(|c| c / steps))?
             }
+            // Written out only when not 0: a cycle-model line without them waited 0 cycles.
+            (Metric::LeapWordWaits, [distance, leap]) => line
+                .get("stall_cycles")
+                .map(|_| distance.unwrap_or(0.0) + leap.unwrap_or(0.0)),
             (Metric::PositionsCut, [cut, total]) => {
                 let total = (*total)?;
                 (total > 0.0).then(|| cut.map(|c| 100.0 * c / total))?
@@ -816,6 +830,19 @@ mod tests {
         assert_eq!(written(&[1.5, 4096.0]), ["2", "4096"]);
         assert_eq!(written(&[2.5e5, 4.35e6]), ["0.25 M", "4.35 M"]);
         assert_eq!(written(&[4.35e6, 1.7e308]), ["4.350e6", "1.700e308"]);
+    }
+
+    /// Waits for distance and leap-value words are their own metric: 0 on a cycle-model line
+    /// that had none (the fields are written only when not 0), none on a line of no timing.
+    #[test]
+    fn leap_word_waits_add_both_causes_and_are_zero_when_not_written() {
+        let waits = |line: serde_json::Value| Metric::LeapWordWaits.value(&line);
+        let stalls = |s: serde_json::Value| serde_json::json!({ "stall_cycles": s });
+        assert_eq!(waits(stalls(serde_json::json!({"memory": 5}))), Some(0.0));
+        let both = serde_json::json!({"memory": 5, "distance_word": 7, "leap_word": 3});
+        assert_eq!(waits(stalls(both.clone())), Some(10.0));
+        assert_eq!(Metric::MemoryStalls.value(&stalls(both)), Some(5.0));
+        assert_eq!(waits(serde_json::json!({"steps": 4})), None);
     }
 
     /// A result line of the cycle model: one frame of `mode`, sampled or exact.
