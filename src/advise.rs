@@ -762,6 +762,11 @@ pub struct Validation {
     pub rows: Vec<ValidationRow>,
     /// Pairs whose runs are not all in the folder yet (`dataset tf: N of M runs`).
     pub incomplete: Vec<String>,
+    /// Modes of the folder's cycle-model runs that the advisor does not rank (bricks, iso,
+    /// homogeneous leap values, leaping without ERT), left out of the true best; `none` is
+    /// not listed. Written out only when there are some.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub not_ranked: Vec<String>,
     /// The results file's last line was incomplete (a sweep killed while writing it, or one
     /// still running) and was left out.
     pub torn_last_line: bool,
@@ -842,6 +847,7 @@ pub fn validate(
         }
     }
     let mut pairs: BTreeMap<String, Pair> = BTreeMap::new();
+    let mut not_ranked = std::collections::BTreeSet::new();
     let (read, torn_last_line) = crate::experiment::store::read_lines_and_torn(&results)?;
     for (line, _) in read {
         if line["model"].as_str() != Some("cycle") || line.get("time_step").is_some() {
@@ -850,6 +856,9 @@ pub fn validate(
         let text = |k: &str| line[k].as_str().unwrap_or_default().to_string();
         let mode = text("mode");
         if !ranked_mode(&mode) {
+            if mode != "none" {
+                not_ranked.insert(mode);
+            }
             continue;
         }
         let (Some(fps), Some(w), Some(h)) = (
@@ -1041,6 +1050,7 @@ pub fn validate(
     Ok(Validation {
         rows,
         incomplete,
+        not_ranked: not_ranked.into_iter().collect(),
         torn_last_line,
     })
 }
@@ -1188,6 +1198,13 @@ pub fn validation_markdown(validation: &Validation, command: &str) -> String {
             text,
             "\nLeft out, their runs not all there yet: {}.",
             validation.incomplete.join("; ")
+        );
+    }
+    if !validation.not_ranked.is_empty() {
+        let _ = writeln!(
+            text,
+            "\nLeft out of the true best, as modes the advisor does not rank: {}.",
+            validation.not_ranked.join(", ")
         );
     }
     if validation.torn_last_line {
@@ -1436,6 +1453,7 @@ pub fn validate_table(
     Ok(Validation {
         rows,
         incomplete: Vec::new(),
+        not_ranked: Vec::new(),
         torn_last_line: false,
     })
 }

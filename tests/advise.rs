@@ -600,7 +600,8 @@ fn validation_keeps_ert_whatever_the_structures() {
     std::fs::write(
         &experiment,
         "name = \"tiny\"\ndatasets = [\"phantom:sphere:32\"]\ntf = [\"zero\", \"class\"]\n\
-         modes = [\"ert\", \"ert+leap4\", \"ert+distance8\"]\nmodels = [\"cycle\"]\n\
+         modes = [\"none\", \"ert\", \"ert+leap4\", \"ert+distance8\", \"ert+leap4+bricks8\"]\n\
+         models = [\"cycle\"]\n\
          [frames]\norbit = 72\nevery = 24\nsize = \"32x32\"\n",
     )
     .unwrap();
@@ -646,6 +647,11 @@ fn validation_keeps_ert_whatever_the_structures() {
     assert!(
         advised.contains(&"ert"),
         "ERT is never advised: {advised:?}"
+    );
+    // Runs of a mode the advisor does not rank are said to be left out (they were silently).
+    assert_eq!(
+        report["not_ranked"],
+        serde_json::json!(["ert+leap4+bricks8"])
     );
     let out = validate("leap-values");
     assert!(!out.status.success());
