@@ -161,7 +161,8 @@ pub fn run(cli: Cli) -> Result<()> {
 
 #[derive(Args, Clone)]
 pub struct DataArgs {
-    /// Folder holding the real datasets (env VIZSIM_DATA; default ../shared/data when present).
+    /// Folder holding the real datasets (env VIZSIM_DATA; default ../shared/data, relative to
+    /// the folder vizsim runs in, when present).
     #[arg(long)]
     pub data_dir: Option<PathBuf>,
 }

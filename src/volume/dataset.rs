@@ -226,7 +226,10 @@ fn unknown_dataset(spec: &str, available: &[DatasetEntry], data_dir: Option<&Pat
     names.push(format!("phantom:{}[:SIZE]", kinds.join("|")));
     let where_ = match data_dir {
         Some(d) => format!(" (data directory {})", d.display()),
-        None => format!(" (no data directory: give --data-dir or set {DATA_DIR_ENV})"),
+        None => format!(
+            " (no data directory: give --data-dir or set {DATA_DIR_ENV}; the default \
+             {DEFAULT_DATA_DIR} is looked for from the folder you run in)"
+        ),
     };
     Error::UnknownDataset {
         name: spec.to_string(),
