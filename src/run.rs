@@ -215,6 +215,11 @@ pub struct Prepared<'v> {
 }
 
 impl<'v> Prepared<'v> {
+    /// The volume the run was prepared for.
+    pub fn volume(&self) -> &'v Volume {
+        self.volume
+    }
+
     /// The fixed-point renderer, for the step and cycle models.
     pub fn fixed(&self) -> Option<&FixedRenderer<'v>> {
         match &self.renderer {
@@ -532,6 +537,51 @@ pub struct Measurements {
     /// without blocking, the table's bits; absent when off.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub blocking: Option<BlockingStats>,
+    /// What the leaping structure and the bricks store beside the volume; absent without them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub structure_memory: Option<StructureMemory>,
+}
+
+/// What a run's leaping structure and bounding bricks store beside the volume, from the
+/// configuration and the volume's dimensions (docs/accelerators.md, "Memory, logic and
+/// latency"): the memory column of a comparison of the structures.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct StructureMemory {
+    /// On-chip bits: the occupancy map (with the hierarchy, one byte per 2×2×2 group, padded
+    /// to whole groups) and one flag per brick.
+    pub on_chip_bits: u64,
+    /// SDRAM rows per bank beyond the volume's: the distance array, one distance per word in
+    /// the rows after the volume's (`AddressMap::distance_word`), so the volume's rows again.
+    pub extra_sdram_rows_per_bank: u64,
+    /// Bits of every voxel word that carry leap values (flag and leap bits), in the words the
+    /// volume already has: no extra memory while the word has room.
+    pub voxel_word_bits: u32,
+}
+
+impl StructureMemory {
+    /// None when the run has neither a leaping structure nor bricks.
+    pub fn of(run: &RunDescription, dims: [usize; 3]) -> Option<StructureMemory> {
+        let config = &run.hardware;
+        let mut memory = StructureMemory::default();
+        match run.leaping() {
+            Leaping::None => {}
+            Leaping::Occupancy {
+                subcube, hierarchy, ..
+            } => memory.on_chip_bits += crate::advise::map_bits(dims, subcube, hierarchy),
+            Leaping::Distance { .. } => {
+                memory.extra_sdram_rows_per_bank = config.memory.rows_needed(dims)
+            }
+            Leaping::LeapValues { .. } => memory.voxel_word_bits = 1 + config.volume_word.leap_bits,
+        }
+        let brick = config.bricks.size;
+        if brick > 0 {
+            memory.on_chip_bits += dims
+                .iter()
+                .map(|d| d.div_ceil(brick) as u64)
+                .product::<u64>();
+        }
+        (memory != StructureMemory::default()).then_some(memory)
+    }
 }
 
 /// What a run produced: its description, the figures, the image.
@@ -806,6 +856,7 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
     }
     let leap_values = prepared.leap_value_stats();
     m.leap_voxels = leap_values.map(|s| s.leap_voxels);
+    m.structure_memory = StructureMemory::of(run, prepared.volume.dims);
     Ok(RunReport {
         run: run.clone(),
         volume: prepared.volume.name.clone(),

@@ -561,3 +561,69 @@ fn cycle_model_equals_functional_with_a_distance_volume_on_real_data() {
         }
     }
 }
+
+/// `structure_memory`, the memory column of a comparison of the structures, is what the
+/// models build and check: the map's bits are the built map's, the distance array's extra rows
+/// are exactly what the cycle model needs beyond the volume's, leap values take flag and leap
+/// bits of the words the volume has, and bricks one flag each.
+#[test]
+fn structure_memory_is_what_the_models_build_and_check() {
+    use vizsim::run::{self, Model, RunDescription, StructureMemory};
+    let dataset_name = "phantom:cast:64";
+    let volume = dataset::load(dataset_name, None).unwrap();
+    let run_with = |model: Model, sets: &[&str]| {
+        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+        let hardware = HardwareConfig::load(None, &sets).unwrap();
+        RunDescription {
+            size: (16, 16),
+            ..RunDescription::new(dataset_name, "class", model, hardware)
+        }
+    };
+    for (subcube, hierarchy) in [(4, false), (4, true), (8, false), (16, true)] {
+        let sets = [
+            format!("occupancy.subcube={subcube}"),
+            format!("occupancy.hierarchy={hierarchy}"),
+        ];
+        let sets: Vec<&str> = sets.iter().map(String::as_str).collect();
+        let run = run_with(Model::Step, &sets);
+        let prepared = run::prepare(&run, &volume).unwrap();
+        let built = prepared.fixed().unwrap().map.as_ref().unwrap();
+        let memory = StructureMemory::of(&run, volume.dims).unwrap();
+        assert_eq!(memory.on_chip_bits, built.storage_bits(hierarchy));
+        assert_eq!(
+            (memory.extra_sdram_rows_per_bank, memory.voxel_word_bits),
+            (0, 0)
+        );
+        // The float model has no map: nothing to store.
+        assert_eq!(
+            StructureMemory::of(&run_with(Model::Float, &sets), volume.dims),
+            None
+        );
+    }
+    let distance = run_with(Model::Cycle, &["occupancy.structure=distance"]);
+    let extra = StructureMemory::of(&distance, volume.dims)
+        .unwrap()
+        .extra_sdram_rows_per_bank;
+    let volume_rows = distance.hardware.memory.rows_needed(volume.dims);
+    for (rows, fits) in [
+        (volume_rows + extra, true),
+        (volume_rows + extra - 1, false),
+    ] {
+        let mut run = distance.clone();
+        run.hardware.memory.rows = rows as u32;
+        assert_eq!(run::prepare(&run, &volume).is_ok(), fits, "{rows} rows");
+    }
+    let leap_values = run_with(Model::Step, &["occupancy.structure=leap-values"]);
+    let word = &leap_values.hardware.volume_word;
+    let bits = StructureMemory::of(&leap_values, volume.dims)
+        .unwrap()
+        .voxel_word_bits;
+    assert_eq!(bits, 1 + word.leap_bits);
+    assert!(word.density_bits + bits <= word.word_bits);
+    let bricks = StructureMemory::of(&run_with(Model::Float, &["bricks.size=16"]), volume.dims);
+    assert_eq!(bricks.unwrap().on_chip_bits, 4 * 4 * 4);
+    assert_eq!(
+        StructureMemory::of(&run_with(Model::Cycle, &[]), volume.dims),
+        None
+    );
+}

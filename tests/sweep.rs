@@ -1396,6 +1396,18 @@ size = "24x24"
         .collect();
     assert_eq!(skippable.iter().filter(|s| s.is_none()).count(), 2);
     assert!(skippable.contains(&Some(0.0)));
+    // And their own structure's memory: a 16³ map of 32³ is 8 bits, 8³ with the hierarchy
+    // 64 (one byte per 2×2×2 group), none without a map.
+    for l in &together {
+        let v: serde_json::Value = serde_json::from_str(l).unwrap();
+        let bits = v["structure_memory"]["on_chip_bits"].as_u64();
+        let want = match v["mode"].as_str().unwrap() {
+            "ert" => None,
+            "ert+leap16" => Some(8),
+            _ => Some(64),
+        };
+        assert_eq!(bits, want, "{l}");
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 

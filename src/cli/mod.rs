@@ -489,6 +489,28 @@ pub fn ray_range_text(m: &vizsim::run::Measurements) -> String {
     text
 }
 
+/// What the leaping structure and bricks store, as a user reads it (None without them).
+pub fn structure_memory_text(m: &vizsim::run::Measurements) -> Option<String> {
+    let s = m.structure_memory.as_ref()?;
+    let mut parts = Vec::new();
+    if s.on_chip_bits > 0 {
+        parts.push(format!("{} bits on chip", s.on_chip_bits));
+    }
+    if s.extra_sdram_rows_per_bank > 0 {
+        parts.push(format!(
+            "{} more SDRAM rows per bank (the distance array)",
+            s.extra_sdram_rows_per_bank
+        ));
+    }
+    if s.voxel_word_bits > 0 {
+        parts.push(format!(
+            "{} bits of every voxel word (leap values; no extra memory)",
+            s.voxel_word_bits
+        ));
+    }
+    Some(format!("structure memory: {}", parts.join("; ")))
+}
+
 /// The blocking figures as a user reads them (empty when blocking is off).
 pub fn blocking_text(m: &vizsim::run::Measurements) -> String {
     let Some(b) = &m.blocking else {

@@ -222,12 +222,17 @@ impl TimingReuse {
             Some(mut measured) => {
                 self.reused
                     .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                // The one measurement of the structure itself, not of the frame.
+                // The measurements of the structure itself, not of the frame: a twin may have
+                // another map (one that never leaps) or none.
                 match run::skippable_subcubes_percent(prepared) {
                     Some(percent) => {
                         measured.insert("skippable_subcubes_percent".into(), json!(percent))
                     }
                     None => measured.remove("skippable_subcubes_percent"),
+                };
+                match run::StructureMemory::of(&run.run, prepared.volume().dims) {
+                    Some(memory) => measured.insert("structure_memory".into(), json!(memory)),
+                    None => measured.remove("structure_memory"),
                 };
                 measured
             }
