@@ -288,6 +288,20 @@ fn target(path: &Path) -> Result<Target> {
     }
 }
 
+/// Refuses an image name whose extension says another format: images are written as PNG
+/// (lossless, so two images compare bit for bit), and a `.jpg` holding PNG bytes misleads every
+/// viewer. A name without an extension (a device, a FIFO) is taken.
+pub fn check_png_name(option: &str, path: &Path) -> Result<()> {
+    match path.extension() {
+        Some(ext) if !ext.eq_ignore_ascii_case("png") => Err(Error::Invalid(format!(
+            "{option} {}: images are written as PNG (lossless, so they compare bit for bit); \
+             name the file .png",
+            path.display()
+        ))),
+        _ => Ok(()),
+    }
+}
+
 /// Refuses a command's outputs that would overwrite one of its inputs or each other (the
 /// later write would silently replace the file). `inputs`: files the command reads (paths that
 /// are no existing file are ignored: a dataset name, a preset); `outputs`: (option, path).

@@ -1442,3 +1442,48 @@ fn flags_and_settings_that_contradict_or_do_nothing_are_refused() {
         succeeds(&args);
     }
 }
+
+/// Images are PNG: a name with another extension is refused before any work, where `render -o
+/// x.jpg` wrote PNG bytes under a JPEG name; `.PNG` and a name without an extension are taken.
+#[test]
+fn an_image_named_for_another_format_is_refused() {
+    let dir = scratch("image-names");
+    let render = |name: &str| {
+        vizsim(&[
+            "render",
+            "--dataset",
+            "phantom:sphere:16",
+            "--size",
+            "8x8",
+            "-o",
+            dir.join(name).to_str().unwrap(),
+        ])
+    };
+    for name in ["x.jpg", "x.ppm", "x.png.tmp"] {
+        let out = render(name);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{name}");
+        assert!(
+            stderr.contains("written as PNG") && stderr.contains(name),
+            "{stderr}"
+        );
+        assert!(!dir.join(name).exists(), "{name}");
+    }
+    for name in ["x.PNG", "frame"] {
+        assert!(render(name).status.success(), "{name}");
+        let bytes = std::fs::read(dir.join(name)).unwrap();
+        assert!(bytes.starts_with(b"\x89PNG"), "{name}");
+    }
+    let a = dir.join("x.PNG");
+    let a_ = a.to_str().unwrap();
+    let jpg = dir.join("d.jpg");
+    assert_fails(
+        &["compare", a_, a_, "--diff", jpg.to_str().unwrap()],
+        &["--diff", "written as PNG"],
+        &jpg,
+    );
+    let mut sim = vec!["sim", "--dataset", "phantom:sphere:16", "--size", "8x8"];
+    let jpg_ = jpg.to_str().unwrap();
+    sim.extend_from_slice(&["--output", jpg_]);
+    assert_fails(&sim, &["--output", "written as PNG"], &jpg);
+}

@@ -12,7 +12,7 @@ pub struct CompareArgs {
     /// Write the comparison as JSON.
     #[arg(long)]
     json: Option<PathBuf>,
-    /// Write a difference image, a PNG whatever the name (|A - B| x 16 in R, G, B).
+    /// Write a difference image as PNG, named .png (|A - B| x 16 in R, G, B).
     #[arg(long)]
     diff: Option<PathBuf>,
 }
@@ -25,6 +25,9 @@ pub fn run(args: CompareArgs) -> Result<()> {
         .filter_map(|(option, path)| Some((option, path?)))
         .collect();
     vizsim::output::check_distinct(&[a.as_path(), b.as_path()], &outputs)?;
+    if let Some(path) = diff {
+        vizsim::output::check_png_name("--diff", path)?;
+    }
     // Every output path is checked before the images are read, and the outputs are written
     // together or not at all: a bad --diff must not leave the --json of a run that failed.
     for (_, path) in &outputs {

@@ -91,6 +91,9 @@ pub fn run(args: SimArgs) -> Result<()> {
     let inputs = args.frame.inputs(&args.hardware, &desc);
     let inputs: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
     vizsim::output::check_distinct(&inputs, &outputs)?;
+    if let Some(path) = &args.output {
+        vizsim::output::check_png_name("--output", path)?;
+    }
     for path in [&args.output, &args.json].into_iter().flatten() {
         vizsim::output::check_writable(path)?;
     }
