@@ -68,8 +68,8 @@ pub enum Metric {
     /// Memory stall cycles: the selected sample's address FIFOs were full (cycle model). A
     /// ray waiting for its distance or leap-value word is `leap-word-waits`.
     MemoryStalls,
-    /// Cycles every ray waited for a distance word or its last sample's leap values (cycle
-    /// model; distance volume and leap values, 0 for the others).
+    /// Cycles every ray waited for a distance word or its last sample's words (cycle model;
+    /// distance volume, leap values and iso-surface refinement, 0 for the others).
     LeapWordWaits,
     /// SDRAM row misses, i.e. page reloads (cycle model).
     RowMisses,

@@ -52,7 +52,8 @@ pub struct StallCycles {
     #[serde(skip_serializing_if = "is_zero")]
     pub distance_word: u64,
     /// Every ray in the queue is busy and at least one waits for its last sample's words to
-    /// learn how far it goes (leap values in the volume only; not written out when 0).
+    /// learn how far it goes (leap values in the volume, and an iso-surface's hit and
+    /// refinement samples; not written out when 0).
     #[serde(skip_serializing_if = "is_zero")]
     pub leap_word: u64,
 }

@@ -489,6 +489,24 @@ pub fn ray_range_text(m: &vizsim::run::Measurements) -> String {
     text
 }
 
+/// Iso-surface mode as a user reads it (None when it is off): the summary line says nothing
+/// of it, and the image is a surface, not a composite.
+pub fn iso_text(config: &HardwareConfig, m: &vizsim::run::Measurements) -> Option<String> {
+    let iso = &config.iso;
+    iso.enabled.then(|| {
+        format!(
+            "iso-surface: value {}, {} refinement steps; {} refinement samples",
+            if iso.value == 0.0 {
+                "half the dataset's largest density".to_string()
+            } else {
+                format!("{:?}", iso.value)
+            },
+            iso.refinement_steps,
+            m.refinement_samples
+        )
+    })
+}
+
 /// What the leaping structure and bricks store, as a user reads it (None without them).
 pub fn structure_memory_text(m: &vizsim::run::Measurements) -> Option<String> {
     let s = m.structure_memory.as_ref()?;

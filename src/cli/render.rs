@@ -108,6 +108,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         if report.measurements.ray_range.is_some() {
             writeln!(said, "{}", super::ray_range_text(&report.measurements))?;
         }
+        if let Some(text) = super::iso_text(&report.run.hardware, &report.measurements) {
+            writeln!(said, "{text}")?;
+        }
         if let Some(text) = super::structure_memory_text(&report.measurements) {
             writeln!(said, "{text}")?;
         }
