@@ -314,6 +314,9 @@ pub struct Table {
     pub raised_sram: BTreeSet<(usize, usize)>,
     /// Cells (row, column) with a sampled simulation's estimate among their lines.
     pub sampled: BTreeSet<(usize, usize)>,
+    /// Cells (row, column) that are means over fewer frames than the table's fullest cells
+    /// (a sweep still running or interrupted), with their frame count.
+    pub fewer_frames: BTreeMap<(usize, usize), u32>,
     pub stand_ins: BTreeSet<String>,
     /// The command that made the table (a line under it), when known.
     pub made_by: Option<String>,
@@ -474,6 +477,8 @@ pub fn build(
     };
     let mut raised_sram = BTreeSet::new();
     let mut sampled = BTreeSet::new();
+    let most_frames = frames_per_cell.last().copied().unwrap_or(1);
+    let mut fewer_frames = BTreeMap::new();
     let rows = row_keys
         .iter()
         .enumerate()
@@ -490,6 +495,9 @@ pub fn build(
                             }
                             if estimate {
                                 sampled.insert((ri, ci));
+                            }
+                            if n < most_frames {
+                                fewer_frames.insert((ri, ci), n);
                             }
                             sum / n as f64
                         })
@@ -529,6 +537,7 @@ pub fn build(
             .collect(),
         raised_sram,
         sampled,
+        fewer_frames,
         stand_ins,
         made_by: None,
     })
@@ -628,7 +637,11 @@ impl Table {
                         } else {
                             ""
                         };
-                        format!("{approx}{}{mark}", formats[ci].write(*v))
+                        let fewer = match self.fewer_frames.get(&(ri, ci)) {
+                            Some(n) => format!(" ({n})"),
+                            None => String::new(),
+                        };
+                        format!("{approx}{}{mark}{fewer}", formats[ci].write(*v))
                     }
                     None => "–".into(),
                 })
@@ -650,6 +663,9 @@ impl Table {
         }
         if !self.sampled.is_empty() {
             s += "\n≈ estimated by sampled simulation (docs/sampling.md): the timing figures of these cells are estimates with a 95 % interval per frame (`cycles_ci95` in the results).\n";
+        }
+        if !self.fewer_frames.is_empty() {
+            s += "\n(n) a mean over only n frames, fewer than the other cells: a sweep still running or interrupted, or frames the experiment selects per mode; compare such cells with care.\n";
         }
         if !self.stand_ins.is_empty() {
             s += "\n† stand-in dataset (see docs/results.md): not the published data.\n";
@@ -909,6 +925,38 @@ mod tests {
         );
     }
 
+    /// A cell averaged over fewer frames than the others (a sweep still running) is marked
+    /// with its count in markdown, with a note; the CSV keeps numbers only, and a table whose
+    /// cells hold alike has no mark.
+    #[test]
+    fn cells_of_fewer_frames_are_marked_with_their_count() {
+        let lines = [
+            line("none", 0, 1000, false),
+            line("none", 1, 1200, false),
+            line("ert", 0, 800, false),
+        ];
+        let lines: Vec<&serde_json::Value> = lines.iter().collect();
+        let rows = ["dataset".to_string()];
+        let table = build(&lines, Metric::Cycles, &rows, "mode", "t").unwrap();
+        let markdown = table.markdown();
+        assert!(markdown.contains("| 1100 | 800.0 (1) |"), "{markdown}");
+        assert!(
+            markdown.contains("(n) a mean over only n frames"),
+            "{markdown}"
+        );
+        assert!(
+            table.title.contains("mean over 1–2 frames"),
+            "{}",
+            table.title
+        );
+        assert_eq!(
+            table.csv().lines().nth(1),
+            Some("phantom:metaballs:32,1100,800")
+        );
+        let whole = build(&lines[..1], Metric::Cycles, &rows, "mode", "t").unwrap();
+        assert!(!whole.markdown().contains("(n)"));
+    }
+
     /// A cell with a sampled line among its frames is marked in markdown (≈ and the note) and
     /// listed in the CSV's `sampled_columns`; counted figures (steps) are exact either way, and
     /// a table without estimates keeps its plain CSV.
@@ -923,7 +971,7 @@ mod tests {
         let rows = ["dataset".to_string()];
         let cycles = build(&lines, Metric::Cycles, &rows, "mode", "t").unwrap();
         let markdown = cycles.markdown();
-        assert!(markdown.contains("| 1000 | ≈ 850.0 |"), "{markdown}");
+        assert!(markdown.contains("| 1000 (1) | ≈ 850.0 |"), "{markdown}");
         assert!(markdown.contains("≈ estimated by sampled simulation"));
         let csv = cycles.csv();
         let csv_lines: Vec<&str> = csv.lines().collect();
