@@ -747,6 +747,19 @@ fn nrrd_truncated_and_overlong_payloads() {
     let message = error_text(nrrd::load_nrrd(&path));
     assert!(message.contains("longer than the 8 bytes"), "{message}");
 
+    // The whole payload, then bytes that are no gzip member: said so (it was "unexpected end
+    // of file"), whether the bytes look like a member's start or not.
+    for trailing in [&b"xyz"[..], b"\x1f\x8b\x08garbage"] {
+        let mut payload = gzip(&[1u8; 8]);
+        payload.extend_from_slice(trailing);
+        let path = dir.write("t.nrrd", &nrrd_file(&gz, &payload));
+        let message = error_text(nrrd::load_nrrd(&path));
+        assert!(
+            message.contains("the 8 bytes needed decode, what follows them does not"),
+            "{message}"
+        );
+    }
+
     let path = dir.write("t.nrrd", &nrrd_file(&gz, b"definitely not gzip"));
     let message = error_text(nrrd::load_nrrd(&path));
     assert!(

@@ -428,6 +428,13 @@ fn read_payload(
         }
     };
     decoded.map_err(|e| match e {
+        PayloadError::AfterPayload(e) if layout.encoding == Encoding::Gzip => Error::format(
+            path,
+            format!(
+                "corrupt gzip payload: the {expected} bytes needed decode, what follows them \
+                 does not ({e}): a damaged end of the stream, or trailing bytes"
+            ),
+        ),
         PayloadError::Io(e)
             if layout.encoding == Encoding::Gzip
                 && matches!(

@@ -161,13 +161,16 @@ pub(crate) enum PayloadError {
     },
     /// More bytes follow the expected payload.
     TooLong,
+    /// The payload was whole, but reading on to check that it ends failed (gzip: data after
+    /// the stream that is no gzip member).
+    AfterPayload(io::Error),
 }
 
 impl PayloadError {
     /// Turns the failure into a crate error naming `path` and the expected byte count.
     pub(crate) fn into_error(self, path: &Path, expected: usize) -> Error {
         match self {
-            PayloadError::Io(e) => Error::io(path, e),
+            PayloadError::Io(e) | PayloadError::AfterPayload(e) => Error::io(path, e),
             PayloadError::Truncated { got } => Error::format(
                 path,
                 format!("truncated payload: {got} bytes, need {expected}"),
@@ -221,7 +224,7 @@ pub(crate) fn read_samples(
         done += want;
     }
     let mut probe = [0u8; 1];
-    if fill(reader, &mut probe).map_err(PayloadError::Io)? > 0 {
+    if fill(reader, &mut probe).map_err(PayloadError::AfterPayload)? > 0 {
         return Err(PayloadError::TooLong);
     }
     Ok(data)
