@@ -259,6 +259,9 @@ impl<'v> Prepared<'v> {
                 "the float model has no distance volume".into(),
             ));
         };
+        if kind == OccupancyKind::Zero {
+            crate::functional::renderer::check_zero_is_invisible(&r.table)?;
+        }
         distance_volume(self.volume, bits, |lo, hi| match kind {
             OccupancyKind::Zero => hi > 0,
             OccupancyKind::Class => r.table.any_visible(lo, hi),

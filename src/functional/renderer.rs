@@ -111,6 +111,25 @@ pub struct FixedRenderer<'a> {
     iso_rgba: [u16; 4],
 }
 
+/// The '0' kind skips what holds only voxels of density 0: lossless only while the
+/// classification makes density 0 invisible. A transfer function that gives density 0 some
+/// opacity (fog around an object) would have leaping and bricks change the image, breaking the
+/// invariant that they never do; refused, naming the kind that follows the table.
+pub fn check_zero_is_invisible(table: &ClassificationTable) -> Result<()> {
+    if table.any_visible(0, 0) {
+        return Err(crate::error::Error::config(
+            "hardware configuration",
+            "occupancy.kind",
+            "'0' (zero) skips voxels of density 0 as empty, but the transfer function gives \
+             density 0 some opacity, so skipping them would change the image; use \
+             occupancy.kind = \"class\" (--occupancy class), whose test follows the transfer \
+             function"
+                .to_string(),
+        ));
+    }
+    Ok(())
+}
+
 impl<'a> FixedRenderer<'a> {
     /// Prepares a frame: validates the widths against the volume, builds the classification
     /// table and, when leaping, the occupancy map (an error when it does not fit the SRAM).
@@ -141,6 +160,17 @@ impl<'a> FixedRenderer<'a> {
                 settings.sample_spacing,
             ),
         };
+        // Bricks follow `occupancy.kind` too.
+        let zero_kind_in_use = match leaping {
+            Leaping::None => false,
+            Leaping::Occupancy { kind, .. }
+            | Leaping::Distance { kind, .. }
+            | Leaping::LeapValues { kind, .. } => kind == OccupancyKind::Zero,
+        } || (config.bricks.size > 0
+            && config.occupancy.kind == OccupancyKind::Zero);
+        if zero_kind_in_use {
+            check_zero_is_invisible(&table)?;
+        }
         let lut_unit = (1u32 << widths.lut_bits) - 1;
         let iso_rgba = iso.map_or([0; 4], |iso| {
             let c = iso.colour.map(|c| (c * lut_unit as f32).round() as u16);
