@@ -1356,7 +1356,7 @@ fn precision_writes_its_report_together_or_not_at_all() {
 /// map, are refused.
 #[test]
 fn flags_and_settings_that_contradict_or_do_nothing_are_refused() {
-    let out = scratch("contradicting").join("x.json");
+    let out = scratch("contradicting").join("x.png");
     let out_ = out.to_str().unwrap();
     let sim = |extra: &[&str]| -> Vec<String> {
         let mut args = vec![
@@ -1486,4 +1486,57 @@ fn an_image_named_for_another_format_is_refused() {
     let jpg_ = jpg.to_str().unwrap();
     sim.extend_from_slice(&["--output", jpg_]);
     assert_fails(&sim, &["--output", "written as PNG"], &jpg);
+}
+
+/// Leap values are refused where their figures would be wrong: with shading the voxel word
+/// cannot hold density, leap value and gradient (a probe found "16 bits of every voxel word, no
+/// extra memory" reported for a word that has no room), and sampled simulation estimates them
+/// about 10 % low, outside its interval.
+#[test]
+fn leap_values_are_refused_where_their_figures_would_be_wrong() {
+    let out = scratch("leap-values-refused").join("x.json");
+    let out_ = out.to_str().unwrap();
+    let base = [
+        "sim",
+        "--dataset",
+        "phantom:cast:32",
+        "--size",
+        "8x8",
+        "--set",
+        "occupancy.structure=leap-values",
+        "--json",
+        out_,
+    ];
+    let with = |extra: &[&'static str]| [&base[..], extra].concat();
+    assert_fails(
+        &with(&["--shading"]),
+        &["volume_word.word_bits", "need 56 bits", "has 32"],
+        &out,
+    );
+    assert_fails(
+        &with(&["--sample", "0.05"]),
+        &["sampling", "leap values", "run this structure exactly"],
+        &out,
+    );
+    // Without either, and shading or sampling with another structure, they run.
+    succeeds(&with(&[]));
+    succeeds(&[
+        "sim",
+        "--dataset",
+        "phantom:cast:32",
+        "--size",
+        "8x8",
+        "--shading",
+        "--subcube",
+        "8",
+    ]);
+    succeeds(&[
+        "sim",
+        "--dataset",
+        "phantom:cast:32",
+        "--size",
+        "8x8",
+        "--sample",
+        "0.05",
+    ]);
 }

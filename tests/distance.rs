@@ -589,7 +589,7 @@ fn structure_memory_is_what_the_models_build_and_check() {
         let prepared = run::prepare(&run, &volume).unwrap();
         let built = prepared.fixed().unwrap().map.as_ref().unwrap();
         let memory = StructureMemory::of(&run, volume.dims).unwrap();
-        assert_eq!(memory.on_chip_bits, built.storage_bits(hierarchy));
+        assert_eq!(memory.map_sram_bits, built.storage_bits(hierarchy));
         assert_eq!(
             (memory.extra_sdram_rows_per_bank, memory.voxel_word_bits),
             (0, 0)
@@ -621,7 +621,11 @@ fn structure_memory_is_what_the_models_build_and_check() {
     assert_eq!(bits, 1 + word.leap_bits);
     assert!(word.density_bits + bits <= word.word_bits);
     let bricks = StructureMemory::of(&run_with(Model::Float, &["bricks.size=16"]), volume.dims);
-    assert_eq!(bricks.unwrap().on_chip_bits, 4 * 4 * 4);
+    let bricks = bricks.unwrap();
+    assert_eq!(
+        (bricks.brick_flag_bits, bricks.map_sram_bits),
+        (4 * 4 * 4, 0)
+    );
     assert_eq!(
         StructureMemory::of(&run_with(Model::Cycle, &[]), volume.dims),
         None

@@ -1400,7 +1400,7 @@ size = "24x24"
     // 64 (one byte per 2×2×2 group), none without a map.
     for l in &together {
         let v: serde_json::Value = serde_json::from_str(l).unwrap();
-        let bits = v["structure_memory"]["on_chip_bits"].as_u64();
+        let bits = v["structure_memory"]["map_sram_bits"].as_u64();
         let want = match v["mode"].as_str().unwrap() {
             "ert" => None,
             "ert+leap16" => Some(8),

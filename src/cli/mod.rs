@@ -511,8 +511,11 @@ pub fn iso_text(config: &HardwareConfig, m: &vizsim::run::Measurements) -> Optio
 pub fn structure_memory_text(m: &vizsim::run::Measurements) -> Option<String> {
     let s = m.structure_memory.as_ref()?;
     let mut parts = Vec::new();
-    if s.on_chip_bits > 0 {
-        parts.push(format!("{} bits on chip", s.on_chip_bits));
+    if s.map_sram_bits > 0 {
+        parts.push(format!("{} bits of map SRAM", s.map_sram_bits));
+    }
+    if s.brick_flag_bits > 0 {
+        parts.push(format!("{} brick flags in ray setup", s.brick_flag_bits));
     }
     if s.extra_sdram_rows_per_bank > 0 {
         parts.push(format!(
