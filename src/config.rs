@@ -897,10 +897,12 @@ impl HardwareConfig {
             return err(
                 "blocking.enabled",
                 format!(
-                    "blocking works with occupancy.structure = \"map\" only (not {:?}): the \
+                    "blocking works with occupancy.structure = \"map\" only (not {}): the \
                      distance volume and leap values are stored in volume memory outside the \
                      blocks",
-                    self.occupancy.structure
+                    toml::Value::try_from(self.occupancy.structure)
+                        .map(|v| v.to_string())
+                        .unwrap_or_default()
                 ),
             );
         }

@@ -40,8 +40,8 @@ impl IsoSurface {
                 "hardware configuration",
                 "iso.value",
                 format!(
-                    "{value} is outside the densities of dataset `{}`: allowed ({lo}, {hi}] \
-                     (0 = half the largest density)",
+                    "{value} is outside the densities of dataset `{}`: allowed ({lo}, {hi}], \
+                     or 0 for half the largest density",
                     volume.name
                 ),
             ));

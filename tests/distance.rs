@@ -694,3 +694,48 @@ fn the_zero_kind_is_refused_when_density_zero_is_visible() {
         assert_eq!(plain.pixels, leaped.pixels, "{view:?}");
     }
 }
+
+/// A base configuration that names another structure still sweeps map modes: the mode sets
+/// the map back before the configuration is validated (a sub-cube size is refused with the
+/// distance volume), so `ert+leap4` runs the map, with the key it has from the default base.
+#[test]
+fn a_base_configuration_with_another_structure_sweeps_map_modes() {
+    use vizsim::experiment::spec::expand;
+    let dir = std::env::temp_dir().join(format!("vizsim-dist-base-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let default = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/configs/hardware/vizard2.toml"
+    ))
+    .unwrap();
+    let distance = default.replacen("structure = \"map\"", "structure = \"distance\"", 1);
+    assert_ne!(default, distance, "the preset names its structure");
+    let base = dir.join("distance-base.toml");
+    std::fs::write(&base, distance).unwrap();
+    let text = |config: &str| {
+        format!(
+            "name = \"b\"\n{config}datasets = [\"phantom:shells:24\"]\ntf = [\"class\"]\n\
+             modes = [\"ert\", \"ert+leap4\", \"ert+leap4+hier\", \"ert+distance8\"]\n\
+             models = [\"cycle\"]\n[frames]\norbit = 1\nsize = \"16x16\"\n"
+        )
+    };
+    let from_distance = expand(
+        &text(&format!("config = {:?}\n", base.to_str().unwrap())),
+        "b",
+        None,
+    )
+    .unwrap();
+    let from_default = expand(&text(""), "b", None).unwrap();
+    for (a, b) in from_distance.runs.iter().zip(&from_default.runs) {
+        let structure = a.run.hardware.occupancy.structure;
+        assert_eq!(
+            structure == LeapStructure::Distance,
+            a.mode.distance_bits > 0,
+            "{}",
+            a.mode.name()
+        );
+        assert_eq!(a.run.hardware.occupancy.subcube, a.mode.subcube);
+        assert_eq!(a.key, b.key, "{}", a.mode.name());
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

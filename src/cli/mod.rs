@@ -217,6 +217,8 @@ pub struct FrameArgs {
     /// `path:FILE:K/N` (frame K of N along a camera path file, e.g. configs/paths/tube.toml).
     #[arg(long, default_value = "front")]
     pub view: String,
+    /// Projection; also for a camera path, whose `fov_y_deg` only perspective uses
+    /// (orthographic uses its `view_width`).
     #[arg(long, value_enum, default_value = "ortho")]
     pub projection: ProjectionArg,
     /// Image size WxH.

@@ -1099,6 +1099,15 @@ impl Plan {
             Some((_, maps)) => maps.iter().map(|&m| Some(m)).collect(),
             None => vec![None],
         };
+        // A base file that names a leaping structure: a map mode sets it back to the map
+        // before validation (an occupancy map's sub-cube size is refused with another
+        // structure). A file without the field keeps the default, the map.
+        let base_names_structure = self
+            .base_text
+            .parse::<toml::Table>()
+            .ok()
+            .and_then(|t| t.get("occupancy")?.get("structure").cloned())
+            .is_some();
         let mut configs: std::collections::HashMap<String, HardwareConfig> =
             std::collections::HashMap::new();
         for name in &experiment.datasets {
@@ -1134,6 +1143,12 @@ impl Plan {
                                 overrides.push(format!("occupancy.subcube={}", mode.subcube));
                                 overrides.push(format!("occupancy.hierarchy={}", mode.hierarchy));
                                 overrides.push(format!("occupancy.kind=\"{tf}\""));
+                                if base_names_structure
+                                    && mode.distance_bits == 0
+                                    && mode.leap_values.is_none()
+                                {
+                                    overrides.push("occupancy.structure=\"map\"".into());
+                                }
                                 let id = overrides.join(" ");
                                 let mut config = match configs.get(&id) {
                                     Some(c) => c.clone(),
