@@ -25,17 +25,29 @@ pub fn read_results(path: &Path) -> Result<(Vec<Value>, bool)> {
             .iter()
             .flat_map(|m| m.inputs())
             .find_map(|field| {
-                lookup(line, field)
-                    .filter(|v| !(v.is_number() || v.is_null()))
-                    .map(|v| (field, v))
+                // Every part of the path: a section that is there must be one (an object), the
+                // figure a number; either may be null (no figure).
+                (1..=field.len()).find_map(|n| {
+                    let leaf = n == field.len();
+                    lookup(line, &field[..n])
+                        .filter(|v| {
+                            !(v.is_null() || if leaf { v.is_number() } else { v.is_object() })
+                        })
+                        .map(|v| (&field[..n], v, leaf))
+                })
             });
-        if let Some((field, v)) = not_a_number {
+        if let Some((field, v, leaf)) = not_a_number {
             return Err(Error::format(
                 path,
                 format!(
-                    "run {}: `{}` is {v}, not a number",
+                    "run {}: `{}` is {v}, not {}",
                     line["key"].as_str().unwrap_or("?"),
-                    field.join(".")
+                    field.join("."),
+                    if leaf {
+                        "a number"
+                    } else {
+                        "a section of figures"
+                    }
                 ),
             ));
         }
@@ -165,6 +177,7 @@ impl Metric {
             // Written out only when not 0: a cycle-model line without them waited 0 cycles.
             (Metric::LeapWordWaits, [distance, leap]) => line
                 .get("stall_cycles")
+                .filter(|s| s.is_object())
                 .map(|_| distance.unwrap_or(0.0) + leap.unwrap_or(0.0)),
             (Metric::PositionsCut, [cut, total]) => {
                 let total = (*total)?;
@@ -314,8 +327,9 @@ pub struct Table {
     pub raised_sram: BTreeSet<(usize, usize)>,
     /// Cells (row, column) with a sampled simulation's estimate among their lines.
     pub sampled: BTreeSet<(usize, usize)>,
-    /// Cells (row, column) that are means over fewer frames than the table's fullest cells
-    /// (a sweep still running or interrupted), with their frame count.
+    /// Cells (row, column) with fewer result lines than the table's fullest cells (a sweep
+    /// still running or interrupted), with their count: counted whether or not a line has
+    /// the metric's figure, so a frame without one (no steps) does not mark its cell.
     pub fewer_frames: BTreeMap<(usize, usize), u32>,
     pub stand_ins: BTreeSet<String>,
     /// The command that made the table (a line under it), when known.
@@ -409,10 +423,10 @@ pub fn build(
     // size the sweep folder mixes), and averaging them would hide it.
     let mut frames: BTreeMap<(Key, (i64, String), String), String> = BTreeMap::new();
     let mut stand_ins = BTreeSet::new();
+    // Lines per cell whether or not they have the metric's figure (a frame of no steps has no
+    // cycles per step): a cell with fewer is one whose results are not all there.
+    let mut lines_per_cell: BTreeMap<(Key, (i64, String)), u32> = BTreeMap::new();
     for line in &lines {
-        let Some(value) = metric.value(line) else {
-            continue;
-        };
         let row: Key = row_fields
             .iter()
             .map(|f| sort_key(f, &field_text(line, f).unwrap_or_default()))
@@ -421,6 +435,12 @@ pub fn build(
             column_field,
             &field_text(line, column_field).unwrap_or_default(),
         );
+        *lines_per_cell
+            .entry((row.clone(), column.clone()))
+            .or_default() += 1;
+        let Some(value) = metric.value(line) else {
+            continue;
+        };
         let frame = ["view", "frame", "time_step"]
             .iter()
             .filter_map(|f| field_text(line, f).map(|v| format!("{f} {v}")))
@@ -477,7 +497,7 @@ pub fn build(
     };
     let mut raised_sram = BTreeSet::new();
     let mut sampled = BTreeSet::new();
-    let most_frames = frames_per_cell.last().copied().unwrap_or(1);
+    let most_lines = lines_per_cell.values().copied().max().unwrap_or(1);
     let mut fewer_frames = BTreeMap::new();
     let rows = row_keys
         .iter()
@@ -496,8 +516,9 @@ pub fn build(
                             if estimate {
                                 sampled.insert((ri, ci));
                             }
-                            if n < most_frames {
-                                fewer_frames.insert((ri, ci), n);
+                            let there = lines_per_cell[&(r.clone(), c.clone())];
+                            if there < most_lines {
+                                fewer_frames.insert((ri, ci), there);
                             }
                             sum / n as f64
                         })
@@ -665,7 +686,7 @@ impl Table {
             s += "\n≈ estimated by sampled simulation (docs/sampling.md): the timing figures of these cells are estimates with a 95 % interval per frame (`cycles_ci95` in the results).\n";
         }
         if !self.fewer_frames.is_empty() {
-            s += "\n(n) a mean over only n frames, fewer than the other cells: a sweep still running or interrupted, or frames the experiment selects per mode; compare such cells with care.\n";
+            s += "\n(n) only n frames of this cell are in the results, fewer than in the other cells: a sweep still running or interrupted, or frames the experiment selects per mode; compare such cells with care.\n";
         }
         if !self.stand_ins.is_empty() {
             s += "\n† stand-in dataset (see docs/results.md): not the published data.\n";
@@ -828,6 +849,15 @@ mod tests {
                 *field.iter().fold(&mut edited, |v, name| &mut v[*name]) = serde_json::Value::Null;
                 std::fs::write(&path, format!("{edited}\n")).unwrap();
                 assert!(read_results(&path).is_ok(), "{metric:?}: null is allowed");
+                // A section on the way that is no section is refused too.
+                if field.len() > 1 {
+                    let mut edited = only_inputs.clone();
+                    edited[field[0]] = "x".into();
+                    std::fs::write(&path, format!("{edited}\n")).unwrap();
+                    let error = read_results(&path).unwrap_err().to_string();
+                    let named = format!("`{}` is \"x\", not a section of figures", field[0]);
+                    assert!(error.contains(&named), "{metric:?}: {error}");
+                }
             }
         }
         std::fs::remove_dir_all(&dir).unwrap();
@@ -941,8 +971,24 @@ mod tests {
         let markdown = table.markdown();
         assert!(markdown.contains("| 1100 | 800.0 (1) |"), "{markdown}");
         assert!(
-            markdown.contains("(n) a mean over only n frames"),
+            markdown.contains("(n) only n frames of this cell"),
             "{markdown}"
+        );
+        // A frame without the figure (no steps: no cycles per step) does not mark its cell.
+        let mut no_steps = line("ert", 1, 0, false);
+        no_steps["steps"] = 0.into();
+        let complete = [
+            line("none", 0, 1000, false),
+            line("none", 1, 1200, false),
+            line("ert", 0, 800, false),
+            no_steps,
+        ];
+        let complete: Vec<&serde_json::Value> = complete.iter().collect();
+        let per_step = build(&complete, Metric::CyclesPerStep, &rows, "mode", "t").unwrap();
+        assert!(
+            !per_step.markdown().contains("(n)"),
+            "{}",
+            per_step.markdown()
         );
         assert!(
             table.title.contains("mean over 1–2 frames"),
