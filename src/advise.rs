@@ -465,16 +465,7 @@ pub fn candidate_modes(dims: [usize; 3], structures: &[Structure]) -> Vec<Mode> 
         .collect()
 }
 
-/// SRAM bits of a map of `subcube`³ sub-cubes (with the hierarchy: padded to whole 2×2×2
-/// groups, one byte per group), as `OccupancyMap::storage_bits` counts them.
-pub fn map_bits(dims: [usize; 3], subcube: usize, hierarchy: bool) -> u64 {
-    let cells = dims.map(|d| d.div_ceil(subcube));
-    if hierarchy {
-        8 * cells.iter().map(|c| c.div_ceil(2) as u64).product::<u64>()
-    } else {
-        cells.iter().map(|&c| c as u64).product()
-    }
-}
+pub use crate::occupancy::map_bits;
 
 /// `base`'s hardware with `mode` applied the way an experiment applies it (ERT, sub-cube,
 /// hierarchy, structure; the map kind from the transfer function: '0' for `zero`, else class).
@@ -541,14 +532,8 @@ pub fn advise(base: &RunDescription, volume: &Volume, options: &AdviseOptions) -
     let sram_bits = base.hardware.occupancy.sram_bits;
     // The memory the cycle model would check (`run::prepare`): the volume alone must fit for
     // any configuration to run; a distance array doubles the rows (without blocking).
-    let memory_fit = |distance: bool| -> Result<()> {
-        if base.hardware.blocking.enabled {
-            return Ok(());
-        }
-        base.hardware
-            .memory
-            .check_covers_with(volume.dims, distance, "hardware configuration")
-    };
+    let memory_fit =
+        |distance: bool| run::check_volume_memory(&base.hardware, volume.dims, distance);
     memory_fit(false)?;
     let mut transfer_function = String::new();
     let mut ranking = Vec::new();

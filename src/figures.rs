@@ -17,6 +17,7 @@ use std::path::Path;
 use serde_json::Value;
 
 use crate::error::{Error, Result};
+use crate::experiment::spec::Mode;
 use crate::plot::{ChartOptions, LineChart, Series};
 use crate::tables::{field_text, mode_label, Metric};
 
@@ -458,17 +459,15 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                         let hierarchy = l["hierarchy"] == Value::Bool(true);
                         // What the mode adds to its map (bricks, iso, ...) makes a series of
                         // its own: `ert+leap8+bricks16` is not a point of `ert+leap8`'s line.
-                        let mode = text(l, "mode");
-                        let extras: String = mode
-                            .split('+')
-                            .filter(|t| {
-                                *t != "ert"
-                                    && *t != "hier"
-                                    && t.strip_prefix("leap")
-                                        .is_none_or(|n| n.parse::<u32>().is_err())
-                            })
-                            .map(|t| format!(" + {t}"))
-                            .collect();
+                        let extras = match Mode::parse(&text(l, "mode")) {
+                            Ok(mut m) => {
+                                (m.ert, m.subcube, m.hierarchy) = (false, 0, false);
+                                Some(m.name()).filter(|n| n != "none")
+                            }
+                            Err(_) => None,
+                        }
+                        .map(|n| format!(" + {n}"))
+                        .unwrap_or_default();
                         // Sorted: '0' before class, each without the hierarchy first.
                         Some(format!(
                             "{}{tf}\u{0}{}{extras}\u{0}{}{}{extras}",

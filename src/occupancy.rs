@@ -33,6 +33,19 @@ impl OccupancyKind {
     }
 }
 
+/// SRAM bits of a map of `subcube`³ sub-cubes of a volume of `dims`, before it is built
+/// (experiments, `advise`, `structure_memory`): one per sub-cube; with the hierarchy, one byte
+/// per 2×2×2 group, padded to whole groups. `OccupancyMap::storage_bits` counts a built map
+/// alike (`tests/distance.rs` checks the two agree).
+pub fn map_bits(dims: [usize; 3], subcube: usize, hierarchy: bool) -> u64 {
+    let cells = dims.map(|d| d.div_ceil(subcube));
+    if hierarchy {
+        8 * cells.iter().map(|c| c.div_ceil(2) as u64).product::<u64>()
+    } else {
+        cells.iter().map(|&c| c as u64).product()
+    }
+}
+
 #[derive(Clone, Debug)]
 pub struct OccupancyMap {
     /// log2 of the sub-cube edge s.

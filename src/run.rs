@@ -394,13 +394,9 @@ pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<
         }
         Model::Step | Model::Cycle => {
             let sdram = run.model == Model::Cycle && run.memory == Memory::Sdram;
-            if sdram && !run.hardware.blocking.enabled {
+            if sdram {
                 let distance = matches!(run.leaping(), Leaping::Distance { .. });
-                if let Err(e) = run.hardware.memory.check_covers_with(
-                    volume.dims,
-                    distance,
-                    "hardware configuration",
-                ) {
+                if let Err(e) = check_volume_memory(&run.hardware, volume.dims, distance) {
                     return Err(with_blocking_hint(e, run, volume, &tf, &settings));
                 }
             }
@@ -436,6 +432,22 @@ pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<
         transfer_function: tf.name,
         renderer,
     })
+}
+
+/// The SDRAM check the cycle model makes before a run: the volume, and with `distance` its
+/// distance array in the rows after it, must fit `memory.rows` (with blocking, the block
+/// table's own check applies instead). `advise` asks the same question of its candidates.
+pub fn check_volume_memory(
+    hardware: &HardwareConfig,
+    dims: [usize; 3],
+    distance: bool,
+) -> Result<()> {
+    if hardware.blocking.enabled {
+        return Ok(());
+    }
+    hardware
+        .memory
+        .check_covers_with(dims, distance, "hardware configuration")
 }
 
 /// A memory error without blocking, with what blocking (at `blocking.block_size`, or 32 when
@@ -605,7 +617,7 @@ impl StructureMemory {
             Leaping::None => {}
             Leaping::Occupancy {
                 subcube, hierarchy, ..
-            } => memory.map_sram_bits = crate::advise::map_bits(dims, subcube, hierarchy),
+            } => memory.map_sram_bits = crate::occupancy::map_bits(dims, subcube, hierarchy),
             Leaping::Distance { .. } => {
                 memory.extra_sdram_rows_per_bank = config.memory.rows_needed(dims)
             }

@@ -466,16 +466,6 @@ fn same_axis_value(a: &toml::Value, b: &toml::Value) -> bool {
     }
 }
 
-/// SRAM bits of a sub-cube map of a volume (as `OccupancyMap::storage_bits`).
-fn map_bits(dims: [usize; 3], subcube: usize, hierarchy: bool) -> u64 {
-    let cells = dims.map(|d| d.div_ceil(subcube));
-    if hierarchy {
-        8 * cells.iter().map(|c| c.div_ceil(2) as u64).product::<u64>()
-    } else {
-        cells.iter().map(|&c| c as u64).product()
-    }
-}
-
 pub fn expand(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Expansion> {
     expand_plan(plan(text, source, data_dir)?)
 }
@@ -1248,7 +1238,11 @@ impl Plan {
                                         });
                                         continue;
                                     }
-                                    let bits = map_bits(dims, mode.subcube, mode.hierarchy);
+                                    let bits = crate::occupancy::map_bits(
+                                        dims,
+                                        mode.subcube,
+                                        mode.hierarchy,
+                                    );
                                     if bits > config.occupancy.sram_bits {
                                         if !experiment.raise_sram {
                                             skip(Skipped {
