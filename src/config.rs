@@ -643,6 +643,81 @@ impl HardwareConfig {
             .collect()
     }
 
+    /// The fields that differ from the default but do nothing in this configuration, because
+    /// the feature they belong to is off (`iso.value` without `iso.enabled`), each with the
+    /// reason: a setting that is shown as set while nothing reads it misleads.
+    pub fn settings_without_effect(&self) -> Vec<String> {
+        let structure = self.occupancy.structure;
+        let no_map = structure == LeapStructure::Map && self.occupancy.subcube == 0;
+        // (field prefix, field that is the switch itself, the feature is off, why)
+        let rules: [(&str, &str, bool, &str); 8] = [
+            (
+                "iso.",
+                "iso.enabled",
+                !self.iso.enabled,
+                "iso.enabled is false",
+            ),
+            (
+                "leap_values.",
+                "",
+                structure != LeapStructure::LeapValues,
+                "occupancy.structure is not \"leap-values\"",
+            ),
+            (
+                "volume_word.",
+                "",
+                structure != LeapStructure::LeapValues,
+                "occupancy.structure is not \"leap-values\"",
+            ),
+            (
+                "occupancy.distance_bits",
+                "",
+                structure != LeapStructure::Distance,
+                "occupancy.structure is not \"distance\"",
+            ),
+            (
+                "blocking.",
+                "blocking.enabled",
+                !self.blocking.enabled,
+                "blocking.enabled is false",
+            ),
+            (
+                "bricks.",
+                "bricks.size",
+                self.bricks.size == 0,
+                "bricks.size is 0",
+            ),
+            (
+                "geometry.",
+                "geometry.shape",
+                self.geometry.shape == GeometryShape::None,
+                "geometry.shape is \"none\"",
+            ),
+            (
+                "occupancy.sram_bits",
+                "",
+                no_map,
+                "occupancy.subcube is 0: no map",
+            ),
+        ];
+        self.differences_from_default()
+            .into_iter()
+            .filter_map(|difference| {
+                let path = difference
+                    .split(" = ")
+                    .next()
+                    .unwrap_or_default()
+                    .to_string();
+                rules
+                    .iter()
+                    .find(|(prefix, switch, off, _)| {
+                        *off && path.starts_with(prefix) && path != *switch
+                    })
+                    .map(|(_, _, _, why)| format!("{difference} ({why})"))
+            })
+            .collect()
+    }
+
     /// The ERT threshold the models apply: None when ERT is off.
     pub fn ert_threshold(&self) -> Option<f32> {
         self.compositing

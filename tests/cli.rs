@@ -1540,3 +1540,37 @@ fn leap_values_are_refused_where_their_figures_would_be_wrong() {
         "0.05",
     ]);
 }
+
+/// A setting whose feature is off is named as without effect, with the switch that is off
+/// (a probe found `--set iso.value=80` without iso, or a distance width with the map, run a
+/// plain frame while the resolved line listed them as set); with the feature on, no note.
+#[test]
+fn settings_whose_feature_is_off_are_named_as_without_effect() {
+    let sim = |sets: &[&str]| {
+        let mut args = vec!["sim", "--dataset", "phantom:sphere:16", "--size", "8x8"];
+        for s in sets {
+            args.extend_from_slice(&["--set", s]);
+        }
+        String::from_utf8_lossy(&succeeds(&args).stdout).into_owned()
+    };
+    let idle = sim(&[
+        "iso.value=8",
+        "occupancy.distance_bits=4",
+        "blocking.block_size=8",
+    ]);
+    for expected in [
+        "note: without effect here:",
+        "iso.value = 8.0 (iso.enabled is false)",
+        "occupancy.distance_bits = 4 (occupancy.structure is not \"distance\")",
+        "blocking.block_size = 8 (blocking.enabled is false)",
+    ] {
+        assert!(idle.contains(expected), "{expected}: {idle}");
+    }
+    let used = sim(&[
+        "iso.enabled=true",
+        "iso.value=8",
+        "occupancy.structure=distance",
+        "occupancy.distance_bits=4",
+    ]);
+    assert!(!used.contains("without effect"), "{used}");
+}

@@ -384,13 +384,19 @@ impl HardwareArgs {
             None => format!("{} (embedded, calibrated)", vizsim::config::DEFAULT_NAME),
         };
         let changed = config.differences_from_default();
-        if changed.is_empty() {
+        let line = if changed.is_empty() {
             format!("hardware: {source}, no field changed")
         } else {
             format!(
                 "hardware: {source}; differs from the default in {}",
                 changed.join(", ")
             )
+        };
+        let idle = config.settings_without_effect();
+        if idle.is_empty() {
+            line
+        } else {
+            format!("{line}\nnote: without effect here: {}", idle.join(", "))
         }
     }
 }
