@@ -290,7 +290,7 @@ pub struct HardwareArgs {
     pub config: Option<PathBuf>,
     /// Override a configuration field, validated like the file: --set skip.reciprocal_bits=6.
     /// Every field (iso.*, clip.*, geometry.*, ray.interleave, blocking.*...) is listed with
-    /// its range in docs/config.md and commented in configs/hardware/vizard2.toml.
+    /// its range in docs/config.md.
     #[arg(long = "set", value_name = "FIELD=VALUE")]
     pub overrides: Vec<String>,
     /// Space leaping with sub-cubes of this edge (2, 4, 8, 16, 32 or 64); without it, no leaping.
