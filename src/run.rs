@@ -172,8 +172,12 @@ impl RunDescription {
             }
         }
         // Leap values share the voxel word with the density, and shading stores a gradient
-        // there too (`shading.gradient_bits` per component): all must fit the word.
-        if self.shading && self.hardware.occupancy.structure == LeapStructure::LeapValues {
+        // there too (`shading.gradient_bits` per component): all must fit the word. The
+        // fixed-point models model that word; the float reference does not.
+        if self.shading
+            && self.model != Model::Float
+            && self.hardware.occupancy.structure == LeapStructure::LeapValues
+        {
             let word = &self.hardware.volume_word;
             let gradient = 3 * self.hardware.shading.gradient_bits;
             let needed = word.density_bits + 1 + word.leap_bits + gradient;
