@@ -1574,3 +1574,47 @@ fn settings_whose_feature_is_off_are_named_as_without_effect() {
     ]);
     assert!(!used.contains("without effect"), "{used}");
 }
+
+/// `update --next` says when rescanning the changed regions (with their stencil borders) costs
+/// more than one scan pass over the whole volume, so the exact map is cheaper by a full scan;
+/// when it does not, nothing is said.
+#[test]
+fn update_says_when_a_full_scan_beats_the_rescan() {
+    let update = |next: &str| {
+        let out = succeeds(&[
+            "update",
+            "phantom:metaballs:32",
+            "--subcube",
+            "8",
+            "--next",
+            next,
+        ]);
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let number_after = |text: &str, label: &str| -> u64 {
+        let rest = &text[text
+            .find(label)
+            .unwrap_or_else(|| panic!("{label}: {text}"))
+            + label.len()..];
+        rest.split(|c: char| !c.is_ascii_digit())
+            .find(|s| !s.is_empty())
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let changed = update("phantom:metaballs:32:t=0.05");
+    // The rescan line's "+ rescan N" (the widen line's comes first).
+    let rescan_line = &changed[changed.find("rescan: ").unwrap()..];
+    let rescan = number_after(rescan_line, "+ rescan ");
+    let scan = number_after(&changed, "scan pass: 4096 requests, ");
+    assert!(
+        changed.contains("costs more than a full scan pass"),
+        "{changed}"
+    );
+    assert!(
+        changed.contains(&format!("the rescan ({rescan} cycles)")) && rescan > scan,
+        "{changed}"
+    );
+    let same = update("phantom:metaballs:32");
+    assert!(!same.contains("costs more"), "{same}");
+}

@@ -168,6 +168,18 @@ pub fn run(args: UpdateArgs) -> Result<()> {
             "  widened class map: {} sub-cubes set that the new volume leaves empty",
             p.widen_stale_subcubes
         );
+        // The rescan reads the changed regions with their stencil borders: when most of the
+        // volume changed, one scan pass over all of it is the cheaper way to an exact map.
+        if p.rescan.rescan_cycles > report.scan.cycles {
+            println!(
+                "  the rescan ({} cycles) costs more than a full scan pass ({} cycles): with {} of \
+                 {} voxels changed, scanning the whole volume is the cheaper exact map",
+                p.rescan.rescan_cycles,
+                report.scan.cycles,
+                p.rescan.voxels_written,
+                report.dims.iter().product::<usize>()
+            );
+        }
     }
     println!("maps checked against OccupancyMap::build: equal after each download and the scan");
     Ok(())
