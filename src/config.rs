@@ -647,6 +647,19 @@ impl HardwareConfig {
     /// the feature they belong to is off (`iso.value` without `iso.enabled`), each with the
     /// reason: a setting that is shown as set while nothing reads it misleads.
     pub fn settings_without_effect(&self) -> Vec<String> {
+        self.differences_from_default()
+            .into_iter()
+            .filter_map(|difference| {
+                let path = difference.split(" = ").next().unwrap_or_default();
+                self.why_without_effect(path)
+                    .map(|why| format!("{difference} ({why})"))
+            })
+            .collect()
+    }
+
+    /// Why the field at `path` (`iso.value`) does nothing in this configuration, if it does
+    /// nothing: the switch of its feature that is off.
+    pub fn why_without_effect(&self, path: &str) -> Option<&'static str> {
         let structure = self.occupancy.structure;
         let no_map = structure == LeapStructure::Map && self.occupancy.subcube == 0;
         // (field prefix, field that is the switch itself, the feature is off, why)
@@ -700,22 +713,10 @@ impl HardwareConfig {
                 "occupancy.subcube is 0: no map",
             ),
         ];
-        self.differences_from_default()
-            .into_iter()
-            .filter_map(|difference| {
-                let path = difference
-                    .split(" = ")
-                    .next()
-                    .unwrap_or_default()
-                    .to_string();
-                rules
-                    .iter()
-                    .find(|(prefix, switch, off, _)| {
-                        *off && path.starts_with(prefix) && path != *switch
-                    })
-                    .map(|(_, _, _, why)| format!("{difference} ({why})"))
-            })
-            .collect()
+        rules
+            .iter()
+            .find(|(prefix, switch, off, _)| *off && path.starts_with(prefix) && path != *switch)
+            .map(|(_, _, _, why)| *why)
     }
 
     /// The ERT threshold the models apply: None when ERT is off.

@@ -1557,12 +1557,17 @@ fn settings_whose_feature_is_off_are_named_as_without_effect() {
         "iso.value=8",
         "occupancy.distance_bits=4",
         "blocking.block_size=8",
+        "bricks.setup=table",
+        "geometry.radius=5.0",
     ]);
     for expected in [
         "note: without effect here:",
         "iso.value = 8.0 (iso.enabled is false)",
         "occupancy.distance_bits = 4 (occupancy.structure is not \"distance\")",
         "blocking.block_size = 8 (blocking.enabled is false)",
+        // Sections not written out while off: named by the --set that was given.
+        "--set bricks.setup=table (bricks.size is 0)",
+        "--set geometry.radius=5.0 (geometry.shape is \"none\")",
     ] {
         assert!(idle.contains(expected), "{expected}: {idle}");
     }

@@ -394,7 +394,18 @@ impl HardwareArgs {
                 changed.join(", ")
             )
         };
-        let idle = config.settings_without_effect();
+        let mut idle = config.settings_without_effect();
+        // A --set the configuration does not even write out while its feature is off
+        // (`bricks.setup` with no bricks, `geometry.radius` with no shape) is named too.
+        for assignment in &self.overrides {
+            let path = assignment.split('=').next().unwrap_or_default().trim();
+            if idle.iter().any(|i| i.starts_with(&format!("{path} ="))) {
+                continue;
+            }
+            if let Some(why) = config.why_without_effect(path) {
+                idle.push(format!("--set {} ({why})", assignment.trim()));
+            }
+        }
         if idle.is_empty() {
             line
         } else {
