@@ -1187,12 +1187,18 @@ fn check_range(source: &str, field: &str, value: u64, lo: u64, hi: u64) -> Resul
 /// Applies `a.b.c=value` to a TOML table. The value is read as TOML (`8`, `true`, `0.9`,
 /// `"class"`); a bare word that is not TOML is taken as a string (`kind=class`). The path must
 /// name an existing field, so a typo is an error rather than a silently ignored setting.
+/// The field path an override sets (`occupancy.subcube` of `occupancy.subcube = 8`), as
+/// `apply_override` reads it.
+pub fn override_path(assignment: &str) -> &str {
+    assignment.split('=').next().unwrap_or_default().trim()
+}
+
 pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
     let bad = |msg: &str| Error::config("--set", assignment, msg);
-    let (path, raw) = assignment
+    let (_, raw) = assignment
         .split_once('=')
         .ok_or_else(|| bad("expected section.field=value"))?;
-    let path = path.trim();
+    let path = override_path(assignment);
     let raw = raw.trim();
     let value: toml::Value = toml::from_str::<toml::Table>(&format!("v = {raw}"))
         .ok()

@@ -1435,6 +1435,8 @@ fn flags_and_settings_that_contradict_or_do_nothing_are_refused() {
         &["--bricks", "8"][..],
         &["--set", "bricks.size=16"],
         &["--occupancy", "zero", "--subcube", "4"],
+        // Bricks follow the kind too.
+        &["--occupancy", "zero", "--bricks", "8"],
         &["--set", "occupancy.structure=distance"],
     ] {
         let args = sim(extra);
@@ -1520,25 +1522,12 @@ fn leap_values_are_refused_where_their_figures_would_be_wrong() {
     );
     // Without either, and shading or sampling with another structure, they run.
     succeeds(&with(&[]));
-    succeeds(&[
-        "sim",
-        "--dataset",
-        "phantom:cast:32",
-        "--size",
-        "8x8",
-        "--shading",
-        "--subcube",
-        "8",
-    ]);
-    succeeds(&[
-        "sim",
-        "--dataset",
-        "phantom:cast:32",
-        "--size",
-        "8x8",
-        "--sample",
-        "0.05",
-    ]);
+    let without_leap_values = |extra: &[&'static str]| {
+        let plain = ["sim", "--dataset", "phantom:cast:32", "--size", "8x8"];
+        succeeds(&[&plain[..], extra].concat());
+    };
+    without_leap_values(&["--shading", "--subcube", "8"]);
+    without_leap_values(&["--sample", "0.05"]);
 }
 
 /// A setting whose feature is off is named as without effect, with the switch that is off

@@ -332,16 +332,13 @@ impl HardwareArgs {
         flags.extend(extra.iter().cloned());
         // A flag and a --set of the same field: which one wins would be a silent choice.
         for (assignment, flag) in &flags {
-            let field = |a: &str| a.split('=').next().unwrap_or_default().trim().to_string();
+            let field = vizsim::config::override_path(assignment);
             if let Some(set) = self
                 .overrides
                 .iter()
-                .find(|o| field(o) == field(assignment))
+                .find(|o| vizsim::config::override_path(o) == field)
             {
-                anyhow::bail!(
-                    "{flag} and --set {set} both set `{}`; give one of them",
-                    field(assignment)
-                );
+                anyhow::bail!("{flag} and --set {set} both set `{field}`; give one of them");
             }
         }
         let mut overrides = self.overrides.clone();
@@ -363,12 +360,14 @@ impl HardwareArgs {
             "--hierarchy: there is no occupancy map to build it on (give --subcube N, or \
              occupancy.subcube in the configuration)"
         );
+        // The kind chooses the map's test, another structure's, or the bricks' (`bricks.size`).
         anyhow::ensure!(
             self.occupancy.is_none()
                 || occupancy.subcube > 0
-                || occupancy.structure != vizsim::config::LeapStructure::Map,
-            "--occupancy: there is no occupancy map for it to choose (give --subcube N, or \
-             occupancy.subcube in the configuration); without one nothing leaps"
+                || occupancy.structure != vizsim::config::LeapStructure::Map
+                || config.bricks.size > 0,
+            "--occupancy: there is no occupancy map, other leaping structure or bricks for it \
+             to choose the test of (give --subcube N or --bricks N); without one it does nothing"
         );
         Ok(config)
     }
@@ -398,7 +397,7 @@ impl HardwareArgs {
         // A --set the configuration does not even write out while its feature is off
         // (`bricks.setup` with no bricks, `geometry.radius` with no shape) is named too.
         for assignment in &self.overrides {
-            let path = assignment.split('=').next().unwrap_or_default().trim();
+            let path = vizsim::config::override_path(assignment);
             if idle.iter().any(|i| i.starts_with(&format!("{path} ="))) {
                 continue;
             }
