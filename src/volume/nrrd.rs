@@ -238,9 +238,6 @@ impl Layout {
                 }
             }
         }
-        if let Some(data_file) = fields.get("data file") {
-            check_single_data_file(data_file)?;
-        }
         let from_spacings = fields
             .get("spacings")
             .map(|v| parse_spacings(v))
