@@ -489,11 +489,23 @@ pub fn leaping_text(leaping: &vizsim::functional::renderer::Leaping) -> String {
     }
 }
 
-/// The ray start and end figures as a user reads them (empty when the feature is off).
-pub fn ray_range_text(m: &vizsim::run::Measurements) -> String {
-    let Some(r) = &m.ray_range else {
-        return String::new();
-    };
+/// The lines `render` and `sim` print under their summary for the features a run has on (ray
+/// start and end, iso-surface mode, a leaping structure's memory, blocking), in that order.
+pub fn feature_lines(config: &HardwareConfig, m: &vizsim::run::Measurements) -> Vec<String> {
+    [
+        ray_range_text(m),
+        iso_text(config, m),
+        structure_memory_text(m),
+        blocking_text(m),
+    ]
+    .into_iter()
+    .flatten()
+    .collect()
+}
+
+/// The ray start and end figures as a user reads them (None when the feature is off).
+fn ray_range_text(m: &vizsim::run::Measurements) -> Option<String> {
+    let r = m.ray_range.as_ref()?;
     let mut text = format!(
         "ray start/end: {} of {} positions in the box cut ({:.1} %)",
         r.positions_cut,
@@ -506,12 +518,12 @@ pub fn ray_range_text(m: &vizsim::run::Measurements) -> String {
     if let (Some(bytes), Some(cycles)) = (r.table_bytes, r.table_load_cycles) {
         text += &format!("; start/end table {bytes} bytes loaded in {cycles} cycles");
     }
-    text
+    Some(text)
 }
 
 /// Iso-surface mode as a user reads it (None when it is off): the summary line says nothing
 /// of it, and the image is a surface, not a composite.
-pub fn iso_text(config: &HardwareConfig, m: &vizsim::run::Measurements) -> Option<String> {
+fn iso_text(config: &HardwareConfig, m: &vizsim::run::Measurements) -> Option<String> {
     let iso = &config.iso;
     iso.enabled.then(|| {
         format!(
@@ -528,7 +540,7 @@ pub fn iso_text(config: &HardwareConfig, m: &vizsim::run::Measurements) -> Optio
 }
 
 /// What the leaping structure and bricks store, as a user reads it (None without them).
-pub fn structure_memory_text(m: &vizsim::run::Measurements) -> Option<String> {
+fn structure_memory_text(m: &vizsim::run::Measurements) -> Option<String> {
     let s = m.structure_memory.as_ref()?;
     let mut parts = Vec::new();
     if s.map_sram_bits > 0 {
@@ -552,11 +564,9 @@ pub fn structure_memory_text(m: &vizsim::run::Measurements) -> Option<String> {
     Some(format!("structure memory: {}", parts.join("; ")))
 }
 
-/// The blocking figures as a user reads them (empty when blocking is off).
-pub fn blocking_text(m: &vizsim::run::Measurements) -> String {
-    let Some(b) = &m.blocking else {
-        return String::new();
-    };
+/// The blocking figures as a user reads them (None when blocking is off).
+fn blocking_text(m: &vizsim::run::Measurements) -> Option<String> {
+    let b = m.blocking.as_ref()?;
     let mut text = format!(
         "blocking: {} of {} blocks of {}³ active; memory {} rows per bank = {} words ({} without \
          blocking: {} words, {}); table {} bits on chip, lookup {} cycles",
@@ -574,7 +584,7 @@ pub fn blocking_text(m: &vizsim::run::Measurements) -> String {
     if let Some(zero) = b.zero_samples {
         text += &format!("; {zero} samples in inactive blocks read as zero (no memory read)");
     }
-    text
+    Some(text)
 }
 
 /// 1234567 -> "1,234,567".

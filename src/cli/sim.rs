@@ -216,17 +216,8 @@ pub fn run(args: SimArgs) -> Result<()> {
                 e.simulated_cycles
             )?;
         }
-        if report.measurements.ray_range.is_some() {
-            writeln!(said, "{}", super::ray_range_text(&report.measurements))?;
-        }
-        if let Some(text) = super::iso_text(&report.run.hardware, &report.measurements) {
-            writeln!(said, "{text}")?;
-        }
-        if let Some(text) = super::structure_memory_text(&report.measurements) {
-            writeln!(said, "{text}")?;
-        }
-        if report.measurements.blocking.is_some() {
-            writeln!(said, "{}", super::blocking_text(&report.measurements))?;
+        for line in super::feature_lines(&report.run.hardware, &report.measurements) {
+            writeln!(said, "{line}")?;
         }
         if let Some(path) = &args.output {
             report.frame.write_png(path)?;
