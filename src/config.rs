@@ -809,7 +809,7 @@ impl HardwareConfig {
             ));
         }
         self.memory.validate(source)?;
-        self.sdram.validate(source)?;
+        self.sdram.validate(source, self.memory.banks)?;
         let o = &self.occupancy;
         if o.subcube != 0 && !SUBCUBE_SIZES.contains(&o.subcube) {
             return Err(Error::config(

@@ -838,3 +838,101 @@ fn lagging_first_keeps_rays_together_in_memory() {
     );
     assert!(lagging.stats.cycles < round_robin.stats.cycles);
 }
+
+/// Random requests to many rows keep a module busy with misses: at the shortest refresh
+/// interval validation allows (`longest_refresh_wait`), every interval still serves a READ, for
+/// several timing tables and bank counts; at the default timing's t_ras + t_rp + t_rfc (14,
+/// accepted before the bound) the refreshes starve the reads.
+#[test]
+fn the_shortest_allowed_refresh_interval_still_reads() {
+    let reads_per_interval = |config: &MemoryConfig, t: &SdramTiming| {
+        let mut m = SdramModule::new(config, t);
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = |n: u64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state % n
+        };
+        let cycles = 20_000u64;
+        for now in 0..cycles {
+            m.step(now);
+            m.pop_word(now);
+            if m.can_accept() {
+                let addr = WordAddress {
+                    module: 0,
+                    bank: next(config.banks as u64) as u32,
+                    row: next(64) as u32,
+                    column: next(512) as u32,
+                };
+                m.push(now as u32, addr, now);
+            }
+            m.account_cycles(1);
+        }
+        let stats = m.final_stats();
+        (stats.reads, cycles / t.refresh_interval as u64)
+    };
+    for (banks, t_ras, t_rp, t_rfc, t_rcd, t_rc) in [
+        (4, 5, 2, 7, 2, 7),
+        (1, 5, 2, 7, 2, 7),
+        (16, 5, 2, 7, 2, 7),
+        (4, 9, 3, 10, 4, 12),
+        (4, 2, 1, 1, 2, 40),
+    ] {
+        let mut config = memory_config();
+        config.banks = banks;
+        let mut t = timing();
+        (t.t_ras, t.t_rp, t.t_rfc, t.t_rcd, t.t_rc) = (t_ras, t_rp, t_rfc, t_rcd, t_rc);
+        t.refresh_interval = t.longest_refresh_wait(banks);
+        t.validate("t", banks).unwrap();
+        let (reads, intervals) = reads_per_interval(&config, &t);
+        assert!(
+            reads >= intervals,
+            "banks {banks}, {t:?}: {reads} reads in {intervals} refresh intervals"
+        );
+        t.refresh_interval -= 1;
+        let err = t.validate("t", banks).unwrap_err().to_string();
+        assert!(err.contains("sdram.refresh_interval"), "{err}");
+    }
+    // A whole frame: at the default timing's t_ras + t_rp + t_rfc = 14 (accepted before the
+    // bound) a refresh falls due between every ACT and its READ, and the pipeline's watchdog
+    // stops the run; at the bound (19 with 4 banks) the frame completes.
+    let volume = common::ball(24);
+    let tf = common::tf(&[
+        (0.0, [0.0; 4]),
+        (60.0, [0.0; 4]),
+        (200.0, [1.0, 0.8, 0.2, 0.8]),
+    ]);
+    let mut config = HardwareConfig::default_config();
+    let renderer = FixedRenderer::new(
+        &volume,
+        &tf,
+        &RenderSettings::default(),
+        &config,
+        Leaping::None,
+    )
+    .unwrap();
+    let cam = common::camera(&volume, View::Front, Projection::Ortho, 16);
+    let mut frame = |interval: u32| {
+        config.sdram.refresh_interval = interval;
+        let mut memory = SdramMemory::new(&config.memory, &config.sdram, volume.dims, 100.0);
+        simulate(
+            &renderer,
+            &cam,
+            &renderer.skipper(),
+            &mut memory,
+            &config,
+            true,
+            None,
+        )
+    };
+    let t = timing();
+    let err = match frame(t.t_ras + t.t_rp + t.t_rfc) {
+        Ok(_) => panic!("the frame at interval 14 completed"),
+        Err(e) => e.to_string(),
+    };
+    assert!(err.contains("deadlock"), "{err}");
+    let bound = t.longest_refresh_wait(memory_config().banks);
+    assert_eq!(bound, 19);
+    assert!(frame(bound).unwrap().stats.cycles > 0);
+}

@@ -100,7 +100,22 @@ impl SdramTiming {
         ]
     }
 
-    pub fn validate(&self, source: &str) -> Result<()> {
+    /// The longest a READ can wait behind a refresh, in cycles from the cycle before the refresh
+    /// falls due (when the last ACT can have issued): the REF waits `t_ras` for that row, then
+    /// precharges the `banks` banks one per cycle and waits `t_rp`; the next ACT waits `t_rfc`
+    /// (or `t_rc` / `t_rrd` from the last ACT, were those longer) and its READ `t_rcd`. A
+    /// refresh interval at least this long lets every interval serve a READ; a shorter one can
+    /// refresh forever without reading (the pipeline's watchdog then stops the run).
+    pub fn longest_refresh_wait(&self, banks: u32) -> u32 {
+        (self.t_ras + banks.saturating_sub(1) + self.t_rp + self.t_rfc)
+            .max(self.t_rc)
+            .max(self.t_rrd)
+            + self.t_rcd
+    }
+
+    /// Checks every field's range and the rules between them; `banks` (`memory.banks`) bounds
+    /// the refresh interval (`longest_refresh_wait`).
+    pub fn validate(&self, source: &str, banks: u32) -> Result<()> {
         for (field, value) in [
             ("sdram.cl", self.cl),
             ("sdram.t_rcd", self.t_rcd),
@@ -149,14 +164,43 @@ impl SdramTiming {
                 ),
             ));
         }
-        if self.refresh_interval <= self.t_rfc + self.t_rp {
+        // A datasheet's row cycle is at least the row's active and precharge times, and a row is
+        // active at least until it can be read; a shorter t_rc or t_ras would bind nothing and
+        // leave the run as if it were longer.
+        if self.t_ras < self.t_rcd {
+            return Err(Error::config(
+                source,
+                "sdram.t_ras",
+                format!(
+                    "{} is shorter than ACT to READ (sdram.t_rcd = {}), so it would bind nothing; \
+                     allowed t_rcd ({})..={MAX_TIMING_CYCLES}",
+                    self.t_ras, self.t_rcd, self.t_rcd
+                ),
+            ));
+        }
+        if self.t_rc < self.t_ras + self.t_rp {
+            return Err(Error::config(
+                source,
+                "sdram.t_rc",
+                format!(
+                    "{} is shorter than a row's active and precharge times (t_ras + t_rp = {}), so \
+                     it would bind nothing; allowed {}..={MAX_TIMING_CYCLES}",
+                    self.t_rc,
+                    self.t_ras + self.t_rp,
+                    self.t_ras + self.t_rp
+                ),
+            ));
+        }
+        let wait = self.longest_refresh_wait(banks);
+        if self.refresh && self.refresh_interval < wait {
             return Err(Error::config(
                 source,
                 "sdram.refresh_interval",
                 format!(
-                    "{} leaves no time between refreshes; allowed > t_rfc + t_rp = {}",
-                    self.refresh_interval,
-                    self.t_rfc + self.t_rp
+                    "{} can leave no READ between two refreshes (a READ can wait t_ras + \
+                     (memory.banks - 1) + t_rp + t_rfc + t_rcd = {wait} cycles behind a refresh); \
+                     allowed {wait}..=4294967295",
+                    self.refresh_interval
                 ),
             ));
         }
