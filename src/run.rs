@@ -143,6 +143,20 @@ impl RunDescription {
         }
     }
 
+    /// The sampling a sampled run simulates with: the description's, its warm-up raised to
+    /// `LONG_WARMUP_RAYS` where a ray waits for its own reads before each step (a distance
+    /// volume), which a short warm-up leaves biased low (docs/sampling.md, "Limits").
+    pub fn sampling(&self) -> Option<Sampling> {
+        self.sample.map(|mut sampling| {
+            if self.hardware.occupancy.structure == LeapStructure::Distance {
+                sampling.warmup_rays = sampling
+                    .warmup_rays
+                    .max(crate::arch::sampling::LONG_WARMUP_RAYS);
+            }
+            sampling
+        })
+    }
+
     /// Checks what the hardware configuration's own validation cannot: view, size, spacing
     /// and memory.
     pub fn validate(&self) -> Result<()> {
@@ -767,7 +781,7 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
     let frame = match (&prepared.renderer, run.model) {
         (Renderer::Float(r), _) => r.render(&camera),
         (Renderer::Fixed(r), Model::Step) => r.render(&camera),
-        (Renderer::Fixed(r), _) => match &run.sample {
+        (Renderer::Fixed(r), _) => match run.sampling() {
             Some(sampling) => {
                 if probes.waveform.is_some() || probes.command_trace.is_some() {
                     return Err(Error::Invalid(
@@ -796,7 +810,7 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
                 })?);
                 let estimate = simulate_sampled(
                     &order,
-                    sampling,
+                    &sampling,
                     seed,
                     config.clock.frequency_mhz,
                     {

@@ -19,7 +19,8 @@
 //! from the functional model. The 95 % interval comes from the residuals between strata
 //! (successive differences or simple random sampling, the larger), plus an allowance for the
 //! warm-up's bias. When every middle unit is measured (rate 1, or a frame of few units) their
-//! counters are summed instead: the frame's exactly, with no interval.
+//! counters are summed instead: the frame's exactly, with no interval. A frame of fewer than
+//! `MIN_SAMPLED_UNITS` units is simulated whole so.
 
 use std::ops::Range;
 
@@ -36,6 +37,21 @@ pub const DEFAULT_UNIT_RAYS: usize = 128;
 /// ray queue's worth at the default R = 16 (docs/sampling.md: 0 to 128 were measured; below 16
 /// the estimate was biased low, from 16 on the bias was within the sample's noise).
 pub const DEFAULT_WARMUP_RAYS: usize = 16;
+/// The fewest units a frame must have to be sampled: a frame with fewer is simulated whole (every
+/// unit measured, the exact cycles). Sampling was validated on 256×256 frames (512 units); on
+/// smaller ones the estimates fell low (by 1.1–1.3 % on average at 128×128 and 192×192, 4 % at
+/// 64×64) and their intervals covered 86–90 % of the exact figures; the exact simulation of such
+/// a frame takes a second or less (docs/sampling.md, "Limits").
+pub const MIN_SAMPLED_UNITS: usize = 512;
+/// The fewest strata a sampled frame is cut into, whatever the rate: the interval rests on the
+/// spread of one unit per stratum, and a handful can agree by chance (2 strata gave ±2 % about
+/// an estimate 4.8× too high). The validated rate 0.05 gives 26 at 256×256.
+pub const MIN_STRATA: usize = 20;
+/// The warm-up before a sampled unit when a ray waits for its own reads before each step (a
+/// distance volume's word): the rays then drift far apart under lagging-first, and 16 rays of
+/// history rebuild too little of that (estimates 8–15 % low, outside their intervals, on
+/// neghip at 256×256); 256 rays brought every one of 48 runs inside (docs/sampling.md).
+pub const LONG_WARMUP_RAYS: usize = 256;
 /// Relative allowance for the warm-up's bias, added to the interval in quadrature (scaled by
 /// the share of middle units not simulated): calibrated with the 16-ray warm-up on half of the
 /// validation runs so that 95 % of them were covered, checked on the other half
@@ -135,6 +151,9 @@ pub struct SampledEstimate {
     pub segments: usize,
     pub simulated_rays: usize,
     pub simulated_cycles: u64,
+    /// Rays simulated, unmeasured, before each sampled unit (`Sampling::warmup_rays`, raised to
+    /// `LONG_WARMUP_RAYS` for a distance volume: `RunDescription::sampling`).
+    pub warmup_rays: usize,
 }
 
 /// One detailed simulation: the issue-order positions `rays` (a contiguous range), snapshots at
@@ -172,10 +191,15 @@ fn plan(total: usize, sampling: &Sampling, seed: u64) -> Plan {
         .collect();
     let count = units.len();
     let middle = count.saturating_sub(2);
-    // n strata of near-equal size; at least two (a variance needs two), at most every unit.
-    let n = ((sampling.rate * middle as f64).ceil() as usize)
-        .max(2)
-        .min(middle);
+    // n strata of near-equal size; at least MIN_STRATA, at most every unit (a frame of fewer
+    // than MIN_SAMPLED_UNITS units: every unit, the exact simulation).
+    let n = if count < MIN_SAMPLED_UNITS {
+        middle
+    } else {
+        ((sampling.rate * middle as f64).ceil() as usize)
+            .max(MIN_STRATA)
+            .min(middle)
+    };
     let strata: Vec<(Range<usize>, usize)> = (0..n)
         .map(|j| {
             let range = 1 + j * middle / n..1 + (j + 1) * middle / n;
@@ -499,6 +523,7 @@ where
         segments: plan.segments.len(),
         simulated_rays: plan.segments.iter().map(|s| s.rays.len()).sum(),
         simulated_cycles: taken.iter().map(|(_, _, c)| c).sum(),
+        warmup_rays: sampling.warmup_rays,
     })
 }
 
@@ -590,9 +615,9 @@ mod tests {
     #[test]
     fn a_low_rate_samples_one_unit_per_stratum_with_its_warm_up() {
         let s = Sampling::new(0.1, "test").unwrap();
-        let p = plan(128 * 102, &s, 7);
-        assert_eq!(p.units.len(), 102);
-        assert_eq!(p.strata.len(), 10);
+        let p = plan(128 * 1002, &s, 7);
+        assert_eq!(p.units.len(), 1002);
+        assert_eq!(p.strata.len(), 100);
         for (range, unit) in &p.strata {
             assert!(range.contains(unit));
             assert_eq!(range.len(), 10);
@@ -602,7 +627,27 @@ mod tests {
             let r = &p.units[u];
             assert!(p.segments.iter().any(|seg| seg.rays.start
                 <= r.start.saturating_sub(s.warmup_rays)
-                && seg.rays.end >= (r.end + 1).min(128 * 102)));
+                && seg.rays.end >= (r.end + 1).min(128 * 1002)));
         }
+    }
+
+    #[test]
+    fn a_small_frame_is_simulated_whole_and_a_low_rate_keeps_the_fewest_strata() {
+        let s = Sampling::new(0.05, "test").unwrap();
+        // 64×64: 32 units, every one measured, in one segment (the exact simulation).
+        let p = plan(64 * 64, &s, 7);
+        assert_eq!(p.measured.len(), p.units.len());
+        assert_eq!(p.segments.len(), 1);
+        // 511 units: still whole; 512: sampled, 26 strata at 0.05; at 0.01, MIN_STRATA.
+        let p = plan(128 * (MIN_SAMPLED_UNITS - 1), &s, 7);
+        assert_eq!(p.measured.len(), p.units.len());
+        let p = plan(128 * MIN_SAMPLED_UNITS, &s, 7);
+        assert_eq!(p.strata.len(), 26);
+        let p = plan(
+            128 * MIN_SAMPLED_UNITS,
+            &Sampling::new(0.01, "t").unwrap(),
+            7,
+        );
+        assert_eq!(p.strata.len(), MIN_STRATA);
     }
 }

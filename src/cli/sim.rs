@@ -198,23 +198,43 @@ pub fn run(args: SimArgs) -> Result<()> {
         volume_word_stalls(&stalls),
         report.sim_cycles_per_second.unwrap_or_default() / 1e6
     )?;
+        let unit_rays = report.run.sample.map_or(0, |s| s.unit_rays);
         if let (Some(e), Some(ci)) = (&report.sampling, m.cycles_ci95) {
-            writeln!(
-                said,
-                "sampled (rate {:?}): the timing figures above are estimates; cycles {} ± {:.0} \
-             (95 % interval, ± {:.2} %); {} of {} units of {} rays simulated in {} segments \
-             ({} rays, {} cycles with warm-up)",
-                m.sample_rate.unwrap_or_default(),
-                cycles,
-                ci,
-                100.0 * ci / cycles.max(1) as f64,
-                e.measured_units,
-                e.units,
-                report.run.sample.map_or(0, |s| s.unit_rays),
-                e.segments,
-                e.simulated_rays,
-                e.simulated_cycles
-            )?;
+            if e.measured_units == e.units {
+                writeln!(
+                    said,
+                    "sampled (rate {:?}): every one of the {} units of {unit_rays} rays simulated, \
+                     so the timing figures above are exact{}",
+                    m.sample_rate.unwrap_or_default(),
+                    e.units,
+                    if e.units < vizsim::arch::sampling::MIN_SAMPLED_UNITS {
+                        format!(
+                            " (a frame of fewer than {} units is simulated whole: sampling is \
+                             validated from 256×256; docs/sampling.md)",
+                            vizsim::arch::sampling::MIN_SAMPLED_UNITS
+                        )
+                    } else {
+                        String::new()
+                    }
+                )?;
+            } else {
+                writeln!(
+                    said,
+                    "sampled (rate {:?}): the timing figures above are estimates; cycles {} ± \
+                     {:.0} (95 % interval, ± {:.2} %); {} of {} units of {unit_rays} rays \
+                     simulated in {} segments ({} rays, {} cycles with warm-ups of {} rays)",
+                    m.sample_rate.unwrap_or_default(),
+                    cycles,
+                    ci,
+                    100.0 * ci / cycles.max(1) as f64,
+                    e.measured_units,
+                    e.units,
+                    e.segments,
+                    e.simulated_rays,
+                    e.simulated_cycles,
+                    e.warmup_rays
+                )?;
+            }
         }
         for line in super::feature_lines(&report.run.hardware, &report.measurements) {
             writeln!(said, "{line}")?;

@@ -528,7 +528,8 @@ pub fn run_seconds(
     match (desc.model, &desc.sample) {
         (Model::Float | Model::Step, _) => steps / 50e6,
         (Model::Cycle, None) => cycle_model,
-        (Model::Cycle, Some(sampling)) => {
+        (Model::Cycle, Some(_)) => {
+            let sampling = desc.sampling().expect("a sampled run");
             let rays = desc.size.0 as usize * desc.size.1 as usize;
             steps / 50e6 + cycle_model * sampling.simulated_share(rays)
         }
