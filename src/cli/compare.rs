@@ -7,7 +7,9 @@ use clap::Args;
 
 #[derive(Args)]
 pub struct CompareArgs {
+    /// First image (PNG, or another format the image crate reads), e.g. a render's output.
     a: PathBuf,
+    /// Second image, the same size as A (the comparison is symmetric).
     b: PathBuf,
     /// Write the comparison as JSON.
     #[arg(long)]

@@ -9,7 +9,7 @@ use super::DataArgs;
 pub struct InfoArgs {
     /// Dataset: a name in the data folder (fuel, neghip, aneurism, skull and foot for their
     /// stand-ins...; a wrong name lists them), phantom:KIND[:SIZE] (sphere, shells, jet,
-    /// metaballs, cast), or a raw, NRRD or descriptor file.
+    /// metaballs, cast, tsdf, tube), or a raw, NRRD or descriptor file.
     dataset: String,
     #[command(flatten)]
     data: DataArgs,
