@@ -118,9 +118,11 @@ pub fn run(args: UpdateArgs) -> Result<()> {
     );
     let d = &report.download_tiled;
     println!(
-        "download in tiles: {} regions, {} host bytes; {} cycles ({:.2} ms; host link bound {} \
-         cycles), {} WRITEs ({:.2} per voxel, {} row misses), write stalls {} cycles",
+        "download in tiles: {} regions, {} voxels sent (with the voxel-pair layouts a tile \
+         repeats the slice above it), {} host bytes; {} cycles ({:.2} ms; host link bound {} \
+         cycles), {} WRITEs ({:.2} per voxel sent, {} row misses), write stalls {} cycles",
         d.regions,
+        d.voxels_written,
         d.host_bytes,
         d.write_cycles,
         ms(d.write_cycles),
