@@ -1556,3 +1556,62 @@ fn tables_refuse_figures_that_are_no_finite_number() {
     std::fs::write(&results, &text).unwrap();
     vizsim_ok(&table);
 }
+
+/// Fields that must change together (a probe found them refused): a zipped pair is validated
+/// as a pair, an invalid combination that an exclusion leaves out is not validated, one that
+/// is left in is refused naming the combination, and a run the run path would refuse
+/// (sampling with leap values) is refused before any run, not when it comes up.
+#[test]
+fn combinations_are_validated_as_they_run() {
+    let one = |axes: &str| {
+        format!(
+            "name = \"coupled\"\ndatasets = [\"phantom:metaballs:32\"]\ntf = [\"class\"]\n\
+             modes = [\"ert\"]\nmodels = [\"cycle\"]\n[frames]\norbit = 72\nselect = [0]\n\
+             size = \"16x16\"\n{axes}"
+        )
+    };
+    let zipped = one("[axes]\n\"sdram.cl\" = [2, 6]\n\"sdram.t_rtw\" = [4, 8]\n").replace(
+        "[frames]",
+        "zip = [[\"sdram.cl\", \"sdram.t_rtw\"]]\n[frames]",
+    );
+    let e = expand(&zipped, "zipped", None).unwrap();
+    let pairs: Vec<(u32, u32)> = e
+        .runs
+        .iter()
+        .map(|r| (r.run.hardware.sdram.cl, r.run.hardware.sdram.t_rtw))
+        .collect();
+    assert_eq!(pairs, [(2, 4), (6, 8)]);
+    let crossed = one(
+        "[axes]\n\"memory.address_fifo_depth\" = [4, 16]\n\"memory.overtaking_window\" = [4, 8]\n",
+    );
+    let refused = |text: &str| match expand(text, "t", None) {
+        Ok(_) => panic!("accepted: {text}"),
+        Err(e) => e.to_string(),
+    };
+    let err = refused(&crossed);
+    assert!(
+        err.contains("memory.address_fifo_depth=4, memory.overtaking_window=8")
+            && err.contains("[[exclude]]"),
+        "{err}"
+    );
+    let excluded = crossed
+        + "[[exclude]]\n\"memory.address_fifo_depth\" = 4\n\"memory.overtaking_window\" = 8\n";
+    assert_eq!(expand(&excluded, "excluded", None).unwrap().runs.len(), 3);
+    // A value out of its own field's range is still refused by itself.
+    let err = refused(&one("[axes]\n\"sdram.cl\" = [0]\n"));
+    assert!(
+        err.contains("axes.\"sdram.cl\"") && err.contains("value 0"),
+        "{err}"
+    );
+    let sampled_leap_values = one("")
+        .replace("modes = [\"ert\"]", "modes = [\"ert\", \"leapvalues\"]")
+        .replace(
+            "models = [\"cycle\"]",
+            "models = [\"cycle\"]\nsample = 0.05",
+        );
+    let err = refused(&sampled_leap_values);
+    assert!(
+        err.contains("mode leapvalues") && err.contains("leap values"),
+        "{err}"
+    );
+}

@@ -197,7 +197,8 @@ impl MemoryConfig {
             return err(
                 "memory.overtaking_window",
                 format!(
-                    "{} is out of range; allowed 1..=address_fifo_depth ({})",
+                    "{} is out of range; allowed 1..=memory.address_fifo_depth ({}): the window \
+                     searches the FIFO's entries (a shallower FIFO needs the window lowered too)",
                     self.overtaking_window, self.address_fifo_depth
                 ),
             );

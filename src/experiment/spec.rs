@@ -806,17 +806,27 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
             ),
         ));
     }
-    // Every axis value alone must be a valid setting of its field.
+    // Every axis value alone must be a valid setting of its field. A rule between fields (the
+    // overtaking window within the FIFO's depth, t_rtw above cl) is checked per combination
+    // when the runs are generated: another axis zipped or crossed with this one, or an
+    // exclusion, may be what makes the value valid.
     for (path, values) in &axes {
         for value in values {
-            HardwareConfig::from_toml_str(&base_text, &base_name, &[format!("{path}={value}")])
-                .map_err(|e| {
+            match HardwareConfig::from_toml_str(
+                &base_text,
+                &base_name,
+                &[format!("{path}={value}")],
+            ) {
+                Err(Error::Config { field, .. }) if field != *path => {}
+                Err(e) => {
                     let problem = setting_problem(e, path, experiment.config.as_deref());
-                    bad(
+                    return Err(bad(
                         &format!("axes.\"{path}\""),
                         format!("value {value}: {problem}"),
-                    )
-                })?;
+                    ));
+                }
+                Ok(_) => {}
+            }
         }
     }
 
@@ -1127,6 +1137,25 @@ impl Plan {
                         }
                         for &model in &self.models {
                             for combo in (0..self.combinations()).map(|i| self.combination(i)) {
+                                // Before the configuration is built: an excluded combination
+                                // need not be a valid one.
+                                let excluded = experiment.exclude.iter().any(|rule| {
+                                    rule.iter().all(|(k, v)| match k.as_str() {
+                                        "dataset" => v.as_str() == Some(name),
+                                        "tf" => v.as_str() == Some(tf),
+                                        "mode" => v
+                                            .as_str()
+                                            .and_then(|m| Mode::parse(m).ok())
+                                            .is_some_and(|m| m == *mode),
+                                        "model" => v.as_str() == Some(model.name()),
+                                        path => combo
+                                            .iter()
+                                            .any(|(p, x)| p == path && same_axis_value(x, v)),
+                                    })
+                                });
+                                if excluded {
+                                    continue;
+                                }
                                 let mut overrides: Vec<String> =
                                     combo.iter().map(|(p, v)| format!("{p}={v}")).collect();
                                 overrides.push(format!("compositing.ert={}", mode.ert));
@@ -1162,7 +1191,10 @@ impl Plan {
                                             bad(
                                                 "axes",
                                                 format!(
-                                                    "the combination {}: {problem}",
+                                                    "the combination {}: {problem}; zip the \
+                                                     axes that must change together, or leave \
+                                                     the combination out with [[exclude]] \
+                                                     (docs/experiments.md)",
                                                     combo
                                                         .iter()
                                                         .map(|(p, v)| format!("{p}={v}"))
@@ -1263,23 +1295,6 @@ impl Plan {
                                     .iter()
                                     .map(|(p, v)| (p.clone(), toml_to_json(v)))
                                     .collect();
-                                let excluded = experiment.exclude.iter().any(|rule| {
-                                    rule.iter().all(|(k, v)| match k.as_str() {
-                                        "dataset" => v.as_str() == Some(name),
-                                        "tf" => v.as_str() == Some(tf),
-                                        "mode" => v
-                                            .as_str()
-                                            .and_then(|m| Mode::parse(m).ok())
-                                            .is_some_and(|m| m == *mode),
-                                        "model" => v.as_str() == Some(model.name()),
-                                        path => combo
-                                            .iter()
-                                            .any(|(p, x)| p == path && same_axis_value(x, v)),
-                                    })
-                                });
-                                if excluded {
-                                    continue;
-                                }
                                 for &frame in &self.frame_list {
                                     let view = view_of(frame);
                                     let run = RunDescription {
@@ -1289,6 +1304,23 @@ impl Plan {
                                         sample: self.sample.filter(|_| model == Model::Cycle),
                                         ..RunDescription::new(name, tf, model, config.clone())
                                     };
+                                    // What the run path would refuse (sampling with leap
+                                    // values, a frame over the budget...), refused before any
+                                    // run rather than when the run comes up.
+                                    run.validate().map_err(|e| {
+                                        bad(
+                                            "modes",
+                                            format!(
+                                                "the run {name}, tf {tf}, mode {}, {} model{}: {e}",
+                                                mode.name(),
+                                                model.name(),
+                                                combo
+                                                    .iter()
+                                                    .map(|(p, v)| format!(", {p}={v}"))
+                                                    .collect::<String>()
+                                            ),
+                                        )
+                                    })?;
                                     let spec = RunSpec {
                                         key: run_key(&run),
                                         index: 0,
