@@ -185,16 +185,29 @@ fn split_fields(lines: &[&Value], x_axis: Option<&str>) -> (Vec<String>, Vec<Str
     (split, tied)
 }
 
-/// Everything that identifies a run's configuration except the frame.
+/// Everything that identifies a run's configuration except the frame: the fields a table
+/// requires as a row or column when they vary (`tables::build`), the image size and the
+/// sampling rate among them (a folder resumed with another size, or sampled after exact runs,
+/// must not plot as one configuration).
 fn configuration(line: &Value) -> String {
-    format!(
-        "{} {} {} {} {}",
-        text(line, "model"),
-        raw_dataset(line),
-        text(line, "tf"),
-        text(line, "mode"),
-        line.get("axes").map(Value::to_string).unwrap_or_default()
-    )
+    let mut text_of = vec![raw_dataset(line)];
+    text_of.extend(
+        [
+            "model",
+            "tf",
+            "mode",
+            "map",
+            "dt",
+            "brick",
+            "width",
+            "height",
+            "sample_rate",
+        ]
+        .iter()
+        .filter_map(|f| field_text(line, f).map(|v| format!("{f} {v}"))),
+    );
+    text_of.push(line.get("axes").map(Value::to_string).unwrap_or_default());
+    text_of.join(", ")
 }
 
 /// One chart point before it is drawn: the values of its lines, their frames and the

@@ -354,7 +354,16 @@ pub fn build(
         // The run's own fields, those of sequence results (map strategy, time step length,
         // brick) and the image size: any that varies must be a row or the column.
         let mut fields: Vec<String> = [
-            "dataset", "tf", "mode", "model", "map", "dt", "brick", "width", "height",
+            "dataset",
+            "tf",
+            "mode",
+            "model",
+            "map",
+            "dt",
+            "brick",
+            "width",
+            "height",
+            "sample_rate",
         ]
         .iter()
         .map(|s| s.to_string())

@@ -384,3 +384,35 @@ fn contact_sheet_panels_carry_a_label_strip() {
     };
     assert!(contact_sheet(&[(&a, vec![]), (&small, vec![])], 2).is_err());
 }
+
+/// Results that a table refuses to mix are refused by the charts too (a probe found a folder
+/// resumed at another image size, and exact runs beside sampled ones, plotted as means of
+/// both): the image size and the sampling rate are part of a point's configuration.
+#[test]
+fn charts_refuse_to_average_over_image_sizes_or_sampling() {
+    let base = rays_sweep(&[8]);
+    for (field, value) in [("width", json!(48)), ("sample_rate", json!(0.25))] {
+        let mut lines = base.clone();
+        for l in &mut lines {
+            l["width"] = json!(64);
+        }
+        let mut other = lines[0].clone();
+        other[field] = value;
+        other["key"] = json!("other");
+        lines.push(other);
+        let dir = scratch(&format!("mixed-{field}"));
+        let err = vizsim::figures::write_all(&lines, &dir)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("would average over configurations") && err.contains(field),
+            "{field}: {err}"
+        );
+    }
+    // Unmixed, the same lines plot.
+    let mut lines = base;
+    for l in &mut lines {
+        l["width"] = json!(64);
+    }
+    vizsim::figures::write_all(&lines, &scratch("unmixed")).unwrap();
+}
