@@ -883,6 +883,70 @@ fn another_experiment_into_a_used_folder_is_refused() {
         );
         assert_eq!(sorted_lines(&out.join("results.jsonl")), results);
     }
+    // A description that names this experiment does not vouch for lines of another (a probe
+    // put `second`'s resolved file beside `first`'s lines and `second` appended to them).
+    std::fs::write(&resolved, r#"{"experiment": {"name": "second"}}"#).unwrap();
+    let refused = vizsim(&["sweep", second.to_str().unwrap(), "--out", out_arg]);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        !refused.status.success() && stderr.contains("experiment `first`, not `second`"),
+        "{stderr}"
+    );
+    assert_eq!(sorted_lines(&out.join("results.jsonl")), results);
+}
+
+/// An experiment file edited between a sweep and its resume: runs it gained are added, but
+/// results of runs it no longer has (a value or size changed) are refused, dry run or not,
+/// naming one of them; before, they stayed beside the new runs and the tables mixed both.
+#[test]
+fn a_resume_after_the_experiment_lost_runs_is_refused() {
+    let dir = temp_dir("edited-experiment");
+    let text = |rays: &str, datasets: &str| {
+        format!(
+            "name = \"edited\"\ndatasets = [{datasets}]\ntf = [\"zero\"]\n\
+             modes = [\"none\"]\nmodels = [\"step\"]\n[frames]\norbit = 1\nsize = \"8x8\"\n\
+             [axes]\n\"ray_queue.rays\" = [{rays}]\n"
+        )
+    };
+    let file = dir.join("e.toml");
+    let out = dir.join("out");
+    let sweep = |text: &str, extra: &[&str]| {
+        std::fs::write(&file, text).unwrap();
+        let mut args = vec![
+            "sweep",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        vizsim(&args)
+    };
+    let sphere = "\"phantom:sphere:16\"";
+    assert!(sweep(&text("8, 16", sphere), &["--quiet"]).status.success());
+    let results = sorted_lines(&out.join("results.jsonl"));
+    assert_eq!(results.len(), 2);
+    for extra in [&["--dry-run"][..], &["--quiet"][..]] {
+        let refused = sweep(&text("8, 32", sphere), extra);
+        let stderr = String::from_utf8_lossy(&refused.stderr);
+        assert!(
+            !refused.status.success()
+                && stderr.contains("1 of its 2 results are not runs of the experiment")
+                && stderr.contains("ray_queue.rays = 16"),
+            "{extra:?}: {stderr}"
+        );
+        assert_eq!(sorted_lines(&out.join("results.jsonl")), results);
+    }
+    // A dataset added keeps every result a run: the sweep adds the new ones.
+    let grown = sweep(
+        &text("8, 16", &format!("{sphere}, \"phantom:shells:16\"")),
+        &["--quiet"],
+    );
+    assert!(
+        grown.status.success(),
+        "{}",
+        String::from_utf8_lossy(&grown.stderr)
+    );
+    assert_eq!(sorted_lines(&out.join("results.jsonl")).len(), 4);
 }
 
 /// A run key twice in one results file with other figures (edited, or two files joined) is
@@ -1614,4 +1678,44 @@ fn combinations_are_validated_as_they_run() {
         err.contains("mode leapvalues") && err.contains("leap values"),
         "{err}"
     );
+}
+
+/// Shards swept from two versions of one experiment file are refused by merge (a probe merged
+/// them, and the merged description named only the first version's values).
+#[test]
+fn merge_refuses_shards_of_two_versions_of_an_experiment() {
+    let dir = temp_dir("merge-versions");
+    let text = |rays: &str| {
+        format!(
+            "name = \"versions\"\ndatasets = [\"phantom:sphere:16\"]\ntf = [\"zero\"]\n\
+             modes = [\"none\"]\nmodels = [\"step\"]\n[frames]\norbit = 2\nsize = \"8x8\"\n\
+             [axes]\n\"ray_queue.rays\" = [{rays}]\n"
+        )
+    };
+    let shard = |rays: &str, shard: &str, name: &str| {
+        let file = dir.join(format!("{name}.toml"));
+        std::fs::write(&file, text(rays)).unwrap();
+        let out = dir.join(name);
+        vizsim_ok(&[
+            "sweep",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--shard",
+            shard,
+            "--quiet",
+        ]);
+        out
+    };
+    let a = shard("8, 16", "0/2", "a");
+    let b = shard("8, 16", "1/2", "b");
+    let c = shard("8, 32", "1/2", "c");
+    let arg = |p: &PathBuf| p.to_str().unwrap().to_string();
+    vizsim_ok(&["merge", &arg(&a), &arg(&b), "--out", &arg(&dir.join("ab"))]);
+    let merged = dir.join("ac");
+    vizsim_fails(
+        &["merge", &arg(&a), &arg(&c), "--out", &arg(&merged)],
+        "different versions of experiment `versions`",
+    );
+    assert!(!merged.exists());
 }

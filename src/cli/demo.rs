@@ -252,6 +252,31 @@ fn quick_experiment(data_dir: Option<&Path>, out: &Path) -> Result<()> {
         "configs/experiments/quick.toml",
         data_dir,
     )?;
+    // The demo's own folder: results of an earlier version of the quick experiment (other
+    // defaults, other runs) are removed rather than mixed into its tables.
+    let done = experiment::store::result_keys(&out.join(experiment::store::RESULTS))?;
+    let runs: std::collections::HashSet<&str> =
+        expansion.runs.iter().map(|r| r.key.as_str()).collect();
+    if experiment::store::ResultStore::check_results_are_runs(out, &done, |k| runs.contains(k))
+        .is_err()
+    {
+        println!(
+            "quick experiment: {} holds results of an earlier version of it; they are removed",
+            out.display()
+        );
+        for file in [
+            experiment::store::RESULTS,
+            experiment::store::TIMING,
+            experiment::store::RESOLVED,
+        ] {
+            match std::fs::remove_file(out.join(file)) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(vizsim::error::Error::io(out.join(file), e).into())
+                }
+                _ => {}
+            }
+        }
+    }
     let summary = experiment::sweep(&expansion, out, None, false)?;
     println!(
         "quick experiment: {} runs in {:.1} s -> {}",

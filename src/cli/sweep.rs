@@ -57,7 +57,12 @@ pub fn run(args: SweepArgs) -> Result<()> {
     experiment::store::ResultStore::check_same_experiment(out, &name)?;
     let done = experiment::store::result_keys(&out.join(experiment::store::RESULTS))?;
     let mut tally = Tally::default();
+    // The folder's results that are runs of the experiment (whatever the model and shard).
+    let mut still_runs = std::collections::HashSet::new();
     let mut count = |r: &spec::RunSpec, volumes: &spec::Volumes| {
+        if done.contains(&r.key) {
+            still_runs.insert(r.key.clone());
+        }
         if model.is_some_and(|m| r.run.model.name() != m) || shard.is_some_and(|s| !s.contains(r)) {
             return;
         }
@@ -88,6 +93,9 @@ pub fn run(args: SweepArgs) -> Result<()> {
         };
         (Some(e), omitted)
     };
+    experiment::store::ResultStore::check_results_are_runs(out, &done, |key| {
+        still_runs.contains(key)
+    })?;
     let threads = rayon::current_num_threads();
     let per_thread = |seconds: f64| duration_text(seconds / threads.max(1) as f64);
     println!(

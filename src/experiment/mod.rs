@@ -603,10 +603,30 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<Merged> {
         }
         Ok(())
     };
+    // And of one version of it: shards swept from different experiment files (an axis value
+    // changed between them) would merge into a folder whose description names only the first.
+    let mut version: Option<(Value, String)> = None;
     let mut torn = Vec::new();
     for dir in &inputs {
         if let Some(name) = store::experiment_name(dir)? {
             same_experiment(&name, dir)?;
+        }
+        let file = crate::input::read_existing(&dir.join(store::RESOLVED))?
+            .and_then(|bytes| serde_json::from_slice::<Value>(&bytes).ok())
+            .and_then(|resolved| resolved.get("experiment").cloned());
+        if let Some(file) = file {
+            match &version {
+                None => version = Some((file, described(dir))),
+                Some((first, at)) if *first != file => {
+                    return Err(Error::Invalid(format!(
+                        "{} and {at} were swept from different versions of experiment `{}` \
+                         (its file changed between them); merge the shards of one version",
+                        described(dir),
+                        file["name"].as_str().unwrap_or_default()
+                    )))
+                }
+                _ => {}
+            }
         }
         let path = dir.join(store::RESULTS);
         let (read, torn_here) = store::read_lines_and_torn(&path)?;

@@ -124,6 +124,28 @@ fn stream_keys(path: &Path) -> Result<(HashSet<String>, BTreeSet<String>)> {
     Ok((keys.into_keys().collect(), experiments))
 }
 
+/// The first complete result line whose key `wanted` accepts, read line by line.
+fn first_line_where(path: &Path, wanted: impl Fn(&str) -> bool) -> Result<Option<Value>> {
+    use std::io::BufRead;
+    let Ok(file) = crate::input::open_regular(path) else {
+        return Ok(None);
+    };
+    for line in std::io::BufReader::new(file).lines() {
+        let line = line.map_err(|e| Error::io(path, e))?;
+        let Ok(value) = serde_json::from_str::<Value>(&line) else {
+            continue;
+        };
+        if value
+            .get("key")
+            .and_then(Value::as_str)
+            .is_some_and(&wanted)
+        {
+            return Ok(Some(value));
+        }
+    }
+    Ok(None)
+}
+
 /// The error of a run key on two lines with different text.
 fn repeated_run(number: usize, key: &str, first: usize) -> String {
     format!(
@@ -384,10 +406,12 @@ impl ResultStore {
     /// is missing or unreadable, the result lines' own.
     pub fn check_same_experiment(dir: &Path, name: &str) -> Result<()> {
         must_be_a_folder(dir)?;
+        // The resolved experiment's name, then the result lines' own (streamed, as the dry run
+        // reads: only keys and names are held): a folder whose resolved file names this
+        // experiment can still hold another's lines.
         let other = match experiment_name(dir)? {
-            Some(other) => Some(other),
-            // Streamed, as the dry run reads (only keys and names are held).
-            None => stream_keys(&dir.join(RESULTS))?
+            Some(other) if other != name => Some(other),
+            _ => stream_keys(&dir.join(RESULTS))?
                 .1
                 .into_iter()
                 .find(|n| n != name),
@@ -400,6 +424,56 @@ impl ResultStore {
             ))),
             _ => Ok(()),
         }
+    }
+
+    /// Refuses a folder whose results include runs the experiment no longer has (`is_run`
+    /// false for their keys): its file changed since they were written (a dataset, mode, axis
+    /// value, frame, image size or sampling rate taken out or changed), and the folder's tables
+    /// would mix the two versions. Results of runs it still has, and runs it gained, are fine.
+    pub fn check_results_are_runs(
+        dir: &Path,
+        done: &HashSet<String>,
+        is_run: impl Fn(&str) -> bool,
+    ) -> Result<()> {
+        let foreign = done.iter().filter(|k| !is_run(k)).count();
+        if foreign == 0 {
+            return Ok(());
+        }
+        let example = first_line_where(&dir.join(RESULTS), |key| !is_run(key))?
+            .map(|line| {
+                let text = |f: &str| crate::tables::field_text(&line, f).unwrap_or_default();
+                let axes = line
+                    .get("axes")
+                    .and_then(Value::as_object)
+                    .map(|a| {
+                        a.iter()
+                            .map(|(k, v)| format!(", {k} = {v}"))
+                            .collect::<String>()
+                    })
+                    .unwrap_or_default();
+                let sampled = line
+                    .get("sample_rate")
+                    .map(|r| format!(", sampled at {r}"))
+                    .unwrap_or_default();
+                format!(
+                    " (e.g. {}, tf {}, mode {}, {} model, frame {}, {}×{}{axes}{sampled})",
+                    text("dataset"),
+                    text("tf"),
+                    text("mode"),
+                    text("model"),
+                    text("frame"),
+                    text("width"),
+                    text("height")
+                )
+            })
+            .unwrap_or_default();
+        Err(Error::Invalid(format!(
+            "{}: {foreign} of its {} results are not runs of the experiment as its file now \
+             reads{example}: the file changed since they were written, and the folder's tables \
+             would mix the two versions; sweep into a new folder, or restore the file",
+            dir.display(),
+            done.len()
+        )))
     }
 
     /// The experiment as resolved (its file, base configuration and every run's parameters),
