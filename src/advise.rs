@@ -755,6 +755,10 @@ pub struct Validation {
     /// The results file's last line was incomplete (a sweep killed while writing it, or one
     /// still running) and was left out.
     pub torn_last_line: bool,
+    /// The cycle model's figures are sampled estimates at these rates (docs/sampling.md), not
+    /// exact simulations. Written out only when there are some.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub sample_rates: Vec<f64>,
 }
 
 /// The pair's identity: dataset, tf and the swept fields other than the mode's.
@@ -833,6 +837,7 @@ pub fn validate(
     }
     let mut pairs: BTreeMap<String, Pair> = BTreeMap::new();
     let mut not_ranked = std::collections::BTreeSet::new();
+    let mut sample_rates: Vec<f64> = Vec::new();
     let (read, torn_last_line) = crate::experiment::store::read_lines_and_torn(&results)?;
     for (line, _) in read {
         if line["model"].as_str() != Some("cycle") || line.get("time_step").is_some() {
@@ -869,12 +874,28 @@ pub fn validate(
         let frame = line["frame"].as_u64().unwrap_or(0) as u32;
         pair.views.insert((frame, text("view")));
         let fits = line["fits_default_sram"].as_bool().unwrap_or(true);
+        if let Some(rate) = line["sample_rate"].as_f64() {
+            if !sample_rates.contains(&rate) {
+                sample_rates.push(rate);
+            }
+        }
         let entry = pair
             .modes
-            .entry(mode)
+            .entry(mode.clone())
             .or_insert_with(|| (BTreeMap::new(), fits));
-        entry.0.insert(frame, fps);
+        // Two results of one frame (exact and sampled runs joined into one file) would leave
+        // whichever came last.
+        if entry.0.insert(frame, fps).is_some() {
+            return Err(Error::Invalid(format!(
+                "{}: two results of {} with {}, mode {mode}, frame {frame} (exact and sampled \
+                 runs, or two image sizes, in one folder?); validate each from its own folder",
+                results.display(),
+                text("dataset"),
+                text("tf")
+            )));
+        }
     }
+    sample_rates.sort_by(f64::total_cmp);
     // A pair whose results are not all there (a sweep still running) is left out: its best
     // configuration may be among the missing runs.
     let mut incomplete = Vec::new();
@@ -1037,6 +1058,7 @@ pub fn validate(
         incomplete,
         not_ranked: not_ranked.into_iter().collect(),
         torn_last_line,
+        sample_rates,
     })
 }
 
@@ -1183,6 +1205,20 @@ pub fn validation_markdown(validation: &Validation, command: &str) -> String {
             text,
             "\nLeft out, their runs not all there yet: {}.",
             validation.incomplete.join("; ")
+        );
+    }
+    if !validation.sample_rates.is_empty() {
+        let _ = writeln!(
+            text,
+            "\nThe cycle model's frame rates here are sampled estimates (sample rate {}), each \
+             with a 95 % interval (docs/sampling.md): where two configurations are within a few \
+             per cent of each other, the true best may be the other.",
+            validation
+                .sample_rates
+                .iter()
+                .map(|r| format!("{r}"))
+                .collect::<Vec<_>>()
+                .join(", ")
         );
     }
     if !validation.not_ranked.is_empty() {
@@ -1440,5 +1476,6 @@ pub fn validate_table(
         incomplete: Vec::new(),
         not_ranked: Vec::new(),
         torn_last_line: false,
+        sample_rates: Vec::new(),
     })
 }

@@ -719,5 +719,51 @@ fn validation_progress_names_the_swept_values() {
             "no progress line of {pair:?}: {stderr}"
         );
     }
+    // Sampled results are said to be estimates (the report was silent about it), and exact and
+    // sampled results of one frame joined into one file are refused (the last line won).
+    let sampled_experiment = dir.join("sampled.toml");
+    std::fs::write(
+        &sampled_experiment,
+        std::fs::read_to_string(&experiment)
+            .unwrap()
+            .replace("models = [\"cycle\"]", "models = [\"cycle\"]\nsample = 0.5"),
+    )
+    .unwrap();
+    let sampled = dir.join("sampled");
+    let sweep = Command::new(exe)
+        .args(["sweep", sampled_experiment.to_str().unwrap(), "--out"])
+        .arg(&sampled)
+        .output()
+        .unwrap();
+    assert!(
+        sweep.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sweep.stderr)
+    );
+    let validate = |folder: &std::path::Path| {
+        Command::new(exe)
+            .args(["advise", "--validate"])
+            .arg(folder)
+            .arg("--json")
+            .output()
+            .unwrap()
+    };
+    let out = validate(&sampled);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["sample_rates"], serde_json::json!([0.5]));
+    let joined = std::fs::read_to_string(results.join("results.jsonl")).unwrap()
+        + &std::fs::read_to_string(sampled.join("results.jsonl")).unwrap();
+    std::fs::write(sampled.join("results.jsonl"), joined).unwrap();
+    let out = validate(&sampled);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("two results of phantom:sphere:32"),
+        "{stderr}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
