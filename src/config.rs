@@ -663,7 +663,7 @@ impl HardwareConfig {
         let structure = self.occupancy.structure;
         let no_map = structure == LeapStructure::Map && self.occupancy.subcube == 0;
         // (field prefix, field that is the switch itself, the feature is off, why)
-        let rules: [(&str, &str, bool, &str); 8] = [
+        let rules: [(&str, &str, bool, &str); 10] = [
             (
                 "iso.",
                 "iso.enabled",
@@ -712,6 +712,14 @@ impl HardwareConfig {
                 no_map,
                 "occupancy.subcube is 0: no map",
             ),
+            (
+                "occupancy.hierarchy",
+                "",
+                no_map,
+                "occupancy.subcube is 0: no map",
+            ),
+            // Which steps in empty space sample: without a leaping structure none is empty.
+            ("skip.policy", "", no_map, "no leaping structure"),
         ];
         rules
             .iter()

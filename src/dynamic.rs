@@ -131,7 +131,7 @@ pub fn check_modelled(hw: &HardwareConfig, used: UpdateUse) -> Result<()> {
     }
     if hw.bricks.size > 0 {
         return refuse(
-            format!("bricks.size = {} (--bricks)", hw.bricks.size),
+            format!("bricks.size = {}", hw.bricks.size),
             "the brick flags that start and end each ray are not kept up to date as the volume \
              changes",
         );
@@ -145,7 +145,7 @@ pub fn check_modelled(hw: &HardwareConfig, used: UpdateUse) -> Result<()> {
     }
     if used == UpdateUse::Measure && hw.occupancy.hierarchy {
         return refuse(
-            "occupancy.hierarchy = true (--hierarchy)".into(),
+            "occupancy.hierarchy = true".into(),
             "update measures the map's bits without the hierarchy's byte layout",
         );
     }

@@ -1548,9 +1548,13 @@ fn settings_whose_feature_is_off_are_named_as_without_effect() {
         "blocking.block_size=8",
         "bricks.setup=table",
         "geometry.radius=5.0",
+        "occupancy.hierarchy=true",
+        "skip.policy=sample-then-leap",
     ]);
     for expected in [
         "note: without effect here:",
+        "occupancy.hierarchy = true (occupancy.subcube is 0: no map)",
+        "skip.policy = \"sample-then-leap\" (no leaping structure)",
         "iso.value = 8.0 (iso.enabled is false)",
         "occupancy.distance_bits = 4 (occupancy.structure is not \"distance\")",
         "blocking.block_size = 8 (blocking.enabled is false)",
@@ -1567,6 +1571,26 @@ fn settings_whose_feature_is_off_are_named_as_without_effect() {
         "occupancy.distance_bits=4",
     ]);
     assert!(!used.contains("without effect"), "{used}");
+    // The ideal memory reads no SDRAM or memory field (a probe's changes ran unnoticed).
+    let ideal = String::from_utf8_lossy(
+        &succeeds(&[
+            "sim",
+            "--dataset",
+            "phantom:sphere:16",
+            "--size",
+            "8x8",
+            "--memory",
+            "ideal",
+            "--set",
+            "sdram.t_rcd=4",
+        ])
+        .stdout,
+    )
+    .into_owned();
+    assert!(
+        ideal.contains("note: without effect with --memory ideal: sdram.t_rcd = 4"),
+        "{ideal}"
+    );
 }
 
 /// `update --next` says when rescanning the changed regions (with their stencil borders) costs

@@ -99,6 +99,20 @@ pub fn run(args: SimArgs) -> Result<()> {
     }
     let config = &desc.hardware;
     println!("{}", args.hardware.resolved_line(config));
+    // The ideal memory reads no SDRAM or memory field: a changed one would go unnoticed.
+    if desc.memory != Memory::Sdram {
+        let memory_fields: Vec<String> = config
+            .differences_from_default()
+            .into_iter()
+            .filter(|d| d.starts_with("sdram.") || d.starts_with("memory."))
+            .collect();
+        if !memory_fields.is_empty() {
+            println!(
+                "note: without effect with --memory ideal: {}",
+                memory_fields.join(", ")
+            );
+        }
+    }
     use vizsim::arch::command_trace::CommandTrace;
     use vizsim::arch::trace::{parse_cycle_window, parse_window, Waveform};
     anyhow::ensure!(
