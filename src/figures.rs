@@ -515,16 +515,26 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                 )?;
                 written += 1;
             }
-            // 3. Frame rate against each swept hardware field (numbers on a linear axis, other
-            //    values in their order, evenly spaced).
+            // 3. Frame rate against each swept hardware field (numbers on a linear axis, or a
+            //    logarithmic one when they span a decade or more; other values in their order,
+            //    evenly spaced). Fields that advance together (a `zip`) make one chart, against
+            //    the first of them.
+            let mut charted = BTreeSet::new();
             for axis in swept_axes(&of) {
                 let values = axis_values(&of, &axis);
-                if values.len() < 2 {
+                if values.len() < 2 || charted.contains(&axis) {
                     continue;
                 }
                 let numeric = of.iter().all(|l| num_axis(l, &axis).is_some());
+                let numbers: Vec<f64> = values.iter().filter_map(|v| v.parse().ok()).collect();
+                let log_x = numeric
+                    && numbers.iter().all(|&v| v > 0.0)
+                    && numbers.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+                        >= 10.0 * numbers.iter().copied().fold(f64::INFINITY, f64::min);
                 let x_of = |l: &Value| {
-                    if numeric {
+                    if log_x {
+                        num_axis(l, &axis).map(f64::log10)
+                    } else if numeric {
                         num_axis(l, &axis)
                     } else {
                         let v = axis_text(l, &axis);
@@ -532,11 +542,12 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                     }
                 };
                 let (split, tied) = split_fields(&of, Some(&axis));
+                charted.extend(tied.iter().cloned());
                 let x_label = if tied.is_empty() {
                     axis.clone()
                 } else {
                     format!("{axis} ({} advancing with it)", tied.join(", "))
-                };
+                } + if log_x { " (log scale)" } else { "" };
                 for facet in facets(&of, &split) {
                     if axis_values(&facet.lines, &axis).len() < 2 {
                         continue;
@@ -566,13 +577,22 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                     for s in &mut series {
                         s.name = s.name.rsplit('\u{0}').next().unwrap_or_default().into();
                     }
-                    let x_ticks = (!numeric).then(|| {
-                        values
-                            .iter()
-                            .enumerate()
-                            .map(|(i, v)| (i as f64, v.clone()))
-                            .collect()
-                    });
+                    let x_ticks = if log_x {
+                        Some(
+                            values
+                                .iter()
+                                .filter_map(|v| Some((v.parse::<f64>().ok()?.log10(), v.clone())))
+                                .collect(),
+                        )
+                    } else {
+                        (!numeric).then(|| {
+                            values
+                                .iter()
+                                .enumerate()
+                                .map(|(i, v)| (i as f64, v.clone()))
+                                .collect()
+                        })
+                    };
                     LineChart {
                         title: &title,
                         x_label: &x_label,

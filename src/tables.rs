@@ -332,6 +332,9 @@ pub struct Table {
     /// the metric's figure, so a frame without one (no steps) does not mark its cell.
     pub fewer_frames: BTreeMap<(usize, usize), u32>,
     pub stand_ins: BTreeSet<String>,
+    /// Fields that vary among the lines with one value per cell (zipped with the column or a
+    /// row): not averaged over, named under the table.
+    pub tied: Vec<String>,
     /// The command that made the table (a line under it), when known.
     pub made_by: Option<String>,
 }
@@ -411,13 +414,38 @@ pub fn build(
             row_fields.join(",")
         )));
     }
+    // A varying field that is neither a row nor the column is fine when it has one value per
+    // cell: it advances with them (a `zip` partner of the column, such as sdram.t_rp with
+    // sdram.t_rcd), and no cell mixes its values. It is named under the table.
+    let cell_of = |line: &Value| -> (Vec<(i64, String)>, (i64, String)) {
+        (
+            row_fields
+                .iter()
+                .map(|f| sort_key(f, &field_text(line, f).unwrap_or_default()))
+                .collect(),
+            sort_key(
+                column_field,
+                &field_text(line, column_field).unwrap_or_default(),
+            ),
+        )
+    };
+    let mut tied = Vec::new();
     for f in &varying {
-        if !row_fields.contains(f) && column_field != f {
+        if row_fields.contains(f) || column_field == f {
+            continue;
+        }
+        let mut per_cell: BTreeMap<_, String> = BTreeMap::new();
+        let one_per_cell = lines.iter().all(|line| {
+            let v = field_text(line, f).unwrap_or_default();
+            per_cell.entry(cell_of(line)).or_insert_with(|| v.clone()) == &v
+        });
+        if !one_per_cell {
             return Err(Error::Invalid(format!(
                 "`{f}` varies among the results; add it to --rows or --columns (rows: {}, columns: {column_field})",
                 row_fields.join(",")
             )));
         }
+        tied.push(f.clone());
     }
     // Means are sums over lines; sum them in key order, not in the order the runs finished, so
     // that the same results give the same digits however the sweep was scheduled.
@@ -569,6 +597,7 @@ pub fn build(
         sampled,
         fewer_frames,
         stand_ins,
+        tied,
         made_by: None,
     })
 }
@@ -699,6 +728,19 @@ impl Table {
         }
         if !self.stand_ins.is_empty() {
             s += "\n† stand-in dataset (see docs/results.md): not the published data.\n";
+        }
+        if !self.tied.is_empty() {
+            s +=
+                &format!(
+                "\n{} {} with the rows and columns (one value per cell, e.g. a zipped axis): not \
+                 averaged over.\n",
+                self.tied
+                    .iter()
+                    .map(|f| format!("`{f}`"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                if self.tied.len() == 1 { "varies" } else { "vary" }
+            );
         }
         if let Some(command) = &self.made_by {
             s += &format!("\nMade by `{command}`.\n");
@@ -939,6 +981,38 @@ mod tests {
             assert!(error.contains(expected), "{rows:?} / {column}: {error}");
         }
         assert!(build(&refs, Metric::Cycles, &fields(&["dataset"]), "mode", "t").is_ok());
+    }
+
+    /// A field zipped with the column (one value per cell) is tabulated and named under the
+    /// table (a probe found `sdram.t_rp` zipped with `sdram.t_rcd` refused); one that takes
+    /// two values in a cell is still refused.
+    #[test]
+    fn a_field_with_one_value_per_cell_is_named_not_refused() {
+        let with = |mode: &str, frame: u64, rcd: u64, rp: u64| {
+            let mut l = line(mode, frame, 100 + rcd, false);
+            l["key"] = format!("{mode}-{frame}-{rcd}-{rp}").into();
+            l["axes"] = serde_json::json!({"sdram.t_rcd": rcd, "sdram.t_rp": rp});
+            l
+        };
+        let rows = ["dataset".to_string()];
+        let zipped = [
+            with("ert", 0, 2, 2),
+            with("ert", 0, 4, 4),
+            with("ert", 1, 4, 4),
+        ];
+        let refs: Vec<&serde_json::Value> = zipped.iter().collect();
+        let table = build(&refs, Metric::Cycles, &rows, "sdram.t_rcd", "t").unwrap();
+        assert_eq!(table.tied, ["sdram.t_rp"]);
+        assert!(table
+            .markdown()
+            .contains("`sdram.t_rp` varies with the rows and columns"));
+        let crossed = [with("ert", 0, 2, 2), with("ert", 1, 2, 4)];
+        let refs: Vec<&serde_json::Value> = crossed.iter().collect();
+        let error = build(&refs, Metric::Cycles, &rows, "sdram.t_rcd", "t")
+            .err()
+            .expect("two values of sdram.t_rp in one cell")
+            .to_string();
+        assert!(error.contains("`sdram.t_rp` varies"), "{error}");
     }
 
     /// Two results of one frame in a cell (a sweep folder that mixes configurations the rows

@@ -230,12 +230,15 @@ fn fields_that_advance_together_are_named_not_split() {
         names.contains("cycle-fps-vs-sdram.t_rcd-phantom-sphere-64.png"),
         "{names:?}"
     );
+    // One chart for the pair, not the same chart again against t_rp (a probe found both).
     assert!(
-        names.contains("cycle-fps-vs-sdram.t_rp-phantom-sphere-64.png"),
+        !names.contains("cycle-fps-vs-sdram.t_rp-phantom-sphere-64.png"),
         "{names:?}"
     );
     let text = svg(&dir, "cycle-fps-vs-sdram.t_rcd-phantom-sphere-64");
     assert!(text.contains("sdram.t_rp advancing with it"), "{text}");
+    // Three values within a decade: a linear axis.
+    assert!(!text.contains("log scale"), "{text}");
     // The per-frame charts are split by both (one combination per value).
     assert_eq!(
         names
@@ -415,4 +418,35 @@ fn charts_refuse_to_average_over_image_sizes_or_sampling() {
         l["width"] = json!(64);
     }
     vizsim::figures::write_all(&lines, &scratch("unmixed")).unwrap();
+}
+
+/// A swept number spanning a decade or more is drawn on a logarithmic x axis, ticked at its
+/// values (a probe found FIFO depths 1 to 64 crowded at the left of a linear axis).
+#[test]
+fn a_swept_field_over_a_decade_has_a_log_axis() {
+    let dir = scratch("log-x");
+    let mut lines = Vec::new();
+    for depth in [1, 2, 4, 8, 16, 32, 64] {
+        for frame in 0..2 {
+            let axes = json!({ "memory.address_fifo_depth": depth });
+            lines.push(line("ert", frame, axes, 100.0 + depth as f64, 40.0));
+        }
+    }
+    vizsim::figures::write_all(&lines, &dir).unwrap();
+    let text = svg(
+        &dir,
+        "cycle-fps-vs-memory.address_fifo_depth-phantom-sphere-64",
+    );
+    assert!(
+        text.contains("memory.address_fifo_depth (log scale)"),
+        "{text}"
+    );
+    // The x ticks are the swept values, in order, after the y axis's labels.
+    let labels: Vec<String> = text
+        .split("</text>")
+        .filter_map(|t| t.rsplit('>').next())
+        .map(|t| t.trim().to_string())
+        .collect();
+    let at = labels.iter().position(|l| l == "1").expect("a tick 1");
+    assert_eq!(labels[at..at + 7], ["1", "2", "4", "8", "16", "32", "64"]);
 }
