@@ -758,24 +758,30 @@ impl HardwareConfig {
             1,
             crate::camera::MAX_INTERLEAVE as u64,
         )?;
-        range(
-            "ray.increment_frac_bits",
-            r.increment_frac_bits as u64,
-            1,
-            r.position_frac_bits as u64,
-        )?;
+        // Bounded by another field: the error says which (a probe read "allowed 1..=8" after
+        // changing only ray.position_frac_bits).
+        let at_most_position = |field: &str, value: u32, low: u32| -> Result<()> {
+            if (low..=r.position_frac_bits).contains(&value) {
+                return Ok(());
+            }
+            Err(Error::config(
+                source,
+                field,
+                format!(
+                    "{value} is out of range; allowed {low}..=ray.position_frac_bits ({}): no \
+                     more fraction bits than a position has",
+                    r.position_frac_bits
+                ),
+            ))
+        };
+        at_most_position("ray.increment_frac_bits", r.increment_frac_bits, 1)?;
         range(
             "skip.reciprocal_bits",
             self.skip.reciprocal_bits as u64,
             2,
             32,
         )?;
-        range(
-            "skip.distance_frac_bits",
-            self.skip.distance_frac_bits as u64,
-            0,
-            r.position_frac_bits as u64,
-        )?;
+        at_most_position("skip.distance_frac_bits", self.skip.distance_frac_bits, 0)?;
         range("skip.latency", self.skip.latency as u64, 1, 64)?;
         let q = &self.ray_queue;
         range("ray_queue.rays", q.rays as u64, 1, 4096)?;

@@ -1593,6 +1593,30 @@ fn settings_whose_feature_is_off_are_named_as_without_effect() {
     );
 }
 
+/// `update` says when the map with its min/max and prefix tables exceeds the configured SRAM
+/// (a probe found the table-based figures given for a chip that cannot hold the table).
+#[test]
+fn update_says_when_its_tables_exceed_the_sram() {
+    let update = |sram: &str| {
+        let out = succeeds(&[
+            "update",
+            "phantom:metaballs:32",
+            "--subcube",
+            "8",
+            "--set",
+            &format!("occupancy.sram_bits={sram}"),
+        ]);
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    // 64 sub-cubes: 64 map bits, 64 × 16 table bits, 256 × 9 prefix bits = 3,392.
+    let small = update("2048");
+    assert!(
+        small.contains("need 3392 bits on chip, more than occupancy.sram_bits (2048)"),
+        "{small}"
+    );
+    assert!(!update("4096").contains("note:"));
+}
+
 /// `update --next` says when rescanning the changed regions (with their stencil borders) costs
 /// more than one scan pass over the whole volume, so the exact map is cheaper by a full scan;
 /// when it does not, nothing is said.

@@ -44,7 +44,7 @@ fn out_of_range_values_name_field_and_range() {
     .unwrap_err()
     .to_string();
     assert!(
-        err.contains("ray.increment_frac_bits") && err.contains("1..=12"),
+        err.contains("ray.increment_frac_bits") && err.contains("1..=ray.position_frac_bits (12)"),
         "{err}"
     );
     let err = load(vizsim::config::DEFAULT_TOML, &["occupancy.subcube=12"])
