@@ -26,7 +26,7 @@ use glam::{Vec3A, Vec4};
 use crate::clip::{Scene, SurfaceColour};
 use crate::config::{BrickSetup, HardwareConfig, BRICK_SIZES};
 use crate::error::{Error, Result};
-use crate::functional::arith::ClassificationTable;
+use crate::functional::arith::{to_accumulator, ClassificationTable};
 use crate::functional::setup::FixedRay;
 use crate::occupancy::{OccupancyKind, OccupancyMap};
 use crate::volume::Volume;
@@ -209,7 +209,7 @@ impl FixedRange {
             fixed = clamp_global(fixed, limits.k_lo, limits.k_end);
             fixed.surface = limits
                 .surface
-                .map(|c| c.map(|x| (x as f64 * self.unit as f64).round() as u32));
+                .map(|c| c.map(|x| to_accumulator(x, self.unit)));
         }
         if let Some((map, shift)) = &self.bricks {
             if fixed.samples > 0 {

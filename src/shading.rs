@@ -12,6 +12,7 @@
 
 use glam::Vec3A;
 
+use crate::functional::arith::{mul_unit, to_unit};
 use crate::volume::Volume;
 
 pub const AMBIENT: f32 = 0.3;
@@ -92,7 +93,7 @@ impl GradientVolume {
 #[inline]
 pub fn phong_fixed(rgba: [u16; 4], g: [i64; 3], light: [i32; 3], unit: u32) -> [u16; 4] {
     let u = unit as u64;
-    let mul = |x: u64, y: u64| (x * y + u / 2) / u;
+    let mul = |x: u64, y: u64| mul_unit(x, y, u);
     let norm_sq: u128 = g.iter().map(|&c| (c as i128 * c as i128) as u128).sum();
     let norm = norm_sq.isqrt();
     let n_dot_l = if norm == 0 {
@@ -102,7 +103,7 @@ pub fn phong_fixed(rgba: [u16; 4], g: [i64; 3], light: [i32; 3], unit: u32) -> [
         let value = dot.unsigned_abs() * u as u128 / (norm << LIGHT_FRAC_BITS);
         (value as u64).min(u)
     };
-    let to_unit = |x: f32| (x * unit as f32).round() as u64;
+    let to_unit = |x: f32| to_unit(x, unit) as u64;
     let factor = to_unit(AMBIENT) + mul(to_unit(DIFFUSE), n_dot_l);
     let mut power = n_dot_l;
     for _ in 0..SHININESS_LOG2 {

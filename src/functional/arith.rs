@@ -5,6 +5,36 @@
 use crate::transfer::{correct_opacity, TransferFunction};
 use crate::volume::Volume;
 
+/// A fraction in [0, 1] in units of `unit` (2^bits − 1: a table entry, an accumulator),
+/// rounded to nearest. The one conversion of a float colour or weight into a fixed-point unit:
+/// table entries, the iso surface's colour and the shading constants (`to_accumulator` for the
+/// accumulators' background and surface colours).
+#[inline]
+pub fn to_unit(x: f32, unit: u32) -> u32 {
+    (x * unit as f32).round() as u32
+}
+
+/// A colour in [0, 1] in accumulator units `unit`, rounded to nearest (in double precision, as
+/// the accumulators are up to 30 bits wide): the background and an opaque surface's colour.
+#[inline]
+pub fn to_accumulator(x: f32, unit: u32) -> u32 {
+    (x as f64 * unit as f64).round() as u32
+}
+
+/// x·y / U rounded to nearest, floor((x·y + U/2) / U): the product of two values in units of
+/// U. `Compositor` computes the same with shifts for U = 2^k − 1 (tested against this).
+#[inline]
+pub fn mul_unit(x: u64, y: u64, unit: u64) -> u64 {
+    (x * y + unit / 2) / unit
+}
+
+/// The table-format RGBA of the iso surface (`lut_bits` wide): its colour, full opacity.
+pub fn iso_entry(colour: [f32; 3], lut_bits: u32) -> [u16; 4] {
+    let unit = (1u32 << lut_bits) - 1;
+    let c = colour.map(|c| to_unit(c, unit) as u16);
+    [c[0], c[1], c[2], unit as u16]
+}
+
 /// The 2×2×2 neighbourhood of a fixed-point position (units of 2^-pf voxels, inside the box)
 /// and its trilinear weights: the position's fraction truncated to `wb` bits, w in [0, 2^wb]
 /// (2^wb only at the upper face, where the lower corner is dim-2).
@@ -162,16 +192,9 @@ impl ClassificationTable {
     /// emptiness test: a cell whose largest voxel is below the iso value is empty); the
     /// iso comparator and the surface colour do not go through the table.
     pub fn iso(first_opaque: usize, colour: [f32; 3], densities: usize, bits: u32) -> Self {
-        let unit = ((1u32 << bits) - 1) as f32;
+        let opaque = iso_entry(colour, bits);
         let entries: Vec<[u16; 4]> = (0..densities)
-            .map(|i| {
-                if i >= first_opaque {
-                    let c = colour.map(|c| (c * unit).round() as u16);
-                    [c[0], c[1], c[2], unit as u16]
-                } else {
-                    [0; 4]
-                }
-            })
+            .map(|i| if i >= first_opaque { opaque } else { [0; 4] })
             .collect();
         Self::from_entries(entries, bits)
     }
@@ -238,7 +261,7 @@ impl Compositor {
             unit_bits: accumulator_bits,
             widened,
             threshold,
-            background: background.map(|c| (c as f64 * unit as f64).round() as u32),
+            background: background.map(|c| to_accumulator(c, unit)),
         }
     }
 
@@ -355,7 +378,7 @@ mod tests {
             }
             let c = Compositor::new(acc_bits, 8, None, [0.0; 4]);
             let check = |x: u64, y: u64| {
-                let expected = (x * y + unit / 2) / unit;
+                let expected = mul_unit(x, y, unit);
                 assert_eq!(
                     c.mul(x as u32, y as u32) as u64,
                     expected,

@@ -4,7 +4,7 @@
 //! each); the published cost is one step per 12.5 ns (`clock.step_time_ns`).
 
 use super::arith::{
-    interpolate, interpolate_exact, interpolate_low_bytes, iso_threshold, Accumulator,
+    interpolate, interpolate_exact, interpolate_low_bytes, iso_entry, iso_threshold, Accumulator,
     ClassificationTable, Compositor, Neighbourhood,
 };
 use std::borrow::Cow;
@@ -171,11 +171,7 @@ impl<'a> FixedRenderer<'a> {
         if zero_kind_in_use {
             check_zero_is_invisible(&table)?;
         }
-        let lut_unit = (1u32 << widths.lut_bits) - 1;
-        let iso_rgba = iso.map_or([0; 4], |iso| {
-            let c = iso.colour.map(|c| (c * lut_unit as f32).round() as u16);
-            [c[0], c[1], c[2], lut_unit as u16]
-        });
+        let iso_rgba = iso.map_or([0; 4], |iso| iso_entry(iso.colour, widths.lut_bits));
         let iso_threshold = iso.map_or(0, |iso| iso_threshold(iso.value, widths.weight_bits));
         let compositor = Compositor::new(
             widths.accumulator_bits,
