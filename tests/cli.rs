@@ -1660,3 +1660,36 @@ fn update_says_when_a_full_scan_beats_the_rescan() {
     let same = update("phantom:metaballs:32");
     assert!(!same.contains("costs more"), "{same}");
 }
+
+/// The precision sweep keeps to what its base configuration allows: with 8-bit positions the
+/// increment widths stop at 8 (a probe's run failed on the sweep's own 9).
+#[test]
+fn precision_sweeps_only_widths_the_base_allows() {
+    let dir = scratch("precision-narrow");
+    succeeds(&[
+        "precision",
+        "--dataset",
+        "phantom:sphere:16",
+        "--size",
+        "16x16",
+        "--out",
+        dir.to_str().unwrap(),
+        "--set",
+        "ray.position_frac_bits=8",
+        "--set",
+        "ray.increment_frac_bits=8",
+        "--set",
+        "skip.distance_frac_bits=4",
+    ]);
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("phantom-sphere-16.json")).unwrap())
+            .unwrap();
+    let increments: Vec<u64> = report["image"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|p| p["field"] == "ray.increment_frac_bits")
+        .map(|p| p["bits"].as_u64().unwrap())
+        .collect();
+    assert_eq!(increments, [4, 5, 6, 7, 8]);
+}
