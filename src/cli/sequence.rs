@@ -34,7 +34,7 @@ pub struct SequenceArgs {
     /// Transfer function: `zero`, `class`, a preset name, or a TOML file.
     #[arg(long, default_value = "class")]
     tf: String,
-    /// `front` or `orbit:K/N`.
+    /// `front`, `orbit:K/N` or `path:FILE:K/N` (a camera path, docs/model.md).
     #[arg(long, default_value = "front")]
     view: String,
     /// Image size WxH.
@@ -82,8 +82,8 @@ pub fn run(args: SequenceArgs) -> Result<()> {
         if !json {
             let s = view.report;
             println!(
-                "step {:>3} {}: {} regions, {} voxels written; update {} + map {} + render {} = {} cycles; \
-                 {:.1} % empty sub-cubes, {} stale{}",
+                "step {:>3} {}: {} regions, {} voxels sent; update {} + map {} + render {} = {} cycles; \
+                 {}{}",
                 s.step,
                 s.volume,
                 s.regions,
@@ -92,8 +92,15 @@ pub fn run(args: SequenceArgs) -> Result<()> {
                 s.map_cycles,
                 s.render_cycles,
                 s.total_cycles,
-                s.empty_subcubes_percent,
-                s.stale_subcubes,
+                // Without a map there are no sub-cubes to count.
+                if options.map == vizsim::dynamic::MapMode::None {
+                    "no map".to_string()
+                } else {
+                    format!(
+                        "{:.1} % empty sub-cubes, {} stale",
+                        s.empty_subcubes_percent, s.stale_subcubes
+                    )
+                },
                 match s.equals_non_leaping {
                     Some(true) => "; image = non-leaping image",
                     _ => "",
