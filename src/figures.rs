@@ -345,8 +345,18 @@ fn frame_axis_label(lines: &[Value]) -> String {
     };
     match orbit {
         Some(n) => format!(
-            "frame ({}° per frame for a {n}-frame orbit)",
-            fmt_degrees(360.0 / n as f64)
+            "frame ({}° per frame for {} {n}-frame orbit)",
+            fmt_degrees(360.0 / n as f64),
+            // "an 8-frame", "an 11-frame", "an 18-frame"; "a 72-frame".
+            if n.to_string().starts_with('8')
+                || [11, 18].contains(&n)
+                || (11_000..=11_999).contains(&n)
+                || (18_000..=18_999).contains(&n)
+            {
+                "an"
+            } else {
+                "a"
+            }
         ),
         None => "frame".to_string(),
     }

@@ -1581,7 +1581,7 @@ fn charts_of_datasets_with_one_file_name_are_all_kept() {
     assert_eq!(charts.len(), 2, "{charts:?}");
     let svg = std::fs::read_to_string(dir.join(&charts[0])).unwrap();
     assert!(
-        svg.contains("45° per frame for a 8-frame orbit"),
+        svg.contains("45° per frame for an 8-frame orbit"),
         "{svg:.300}"
     );
 }

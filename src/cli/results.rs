@@ -109,7 +109,18 @@ impl ResultsArgs {
                 "--model {m}: expected `step` or `cycle`"
             );
         }
+        // A misspelt folder is named as such, not as a file the system cannot find in it.
+        anyhow::ensure!(
+            self.dir.is_dir(),
+            "{}: no such sweep folder",
+            self.dir.display()
+        );
         let path = self.dir.join("results.jsonl");
+        anyhow::ensure!(
+            path.exists(),
+            "{}: no results.jsonl here: not a sweep folder",
+            self.dir.display()
+        );
         let (mut lines, torn) = vizsim::tables::read_results(&path)?;
         if torn {
             eprintln!("{}", vizsim::experiment::store::torn_note(&path));
@@ -143,6 +154,11 @@ impl ResultsArgs {
             self.dir.display(),
             self.dataset.join(",")
         );
+        // Results filtered away by --model are named so (the folder has results, of the other
+        // model).
+        if let Some(m) = self.model.as_deref().filter(|_| lines.is_empty()) {
+            anyhow::bail!("{}: no {m}-model results", self.dir.display());
+        }
         // Key order, not completion order: tables and charts sum in this order.
         lines.sort_by(|a, b| a["key"].as_str().cmp(&b["key"].as_str()));
         Ok(lines)

@@ -100,7 +100,7 @@ pub fn run(args: SweepArgs) -> Result<()> {
     let per_thread = |seconds: f64| duration_text(seconds / threads.max(1) as f64);
     println!(
         "{name}: {} runs{} ({} step model, {} cycle model to run; {} already done in {}); \
-         estimate {} + {} on {threads} threads (step + cycle model; rough)",
+         estimate {} + {} on {threads} thread{} (step + cycle model; rough)",
         tally.mine,
         shard
             .map(|s| format!(" in shard {}/{}", s.index, s.count))
@@ -111,6 +111,7 @@ pub fn run(args: SweepArgs) -> Result<()> {
         out.display(),
         per_thread(tally.seconds[0]),
         per_thread(tally.seconds[1]),
+        if threads == 1 { "" } else { "s" },
     );
     if tally.pending[1] > 0 {
         println!(
@@ -120,7 +121,7 @@ pub fn run(args: SweepArgs) -> Result<()> {
     }
     if omitted.duplicates > 0 {
         println!(
-            "  {} runs are listed more than once (repeated datasets, frames or axis values): each runs once",
+            "  {} runs are listed more than once (repeated datasets, transfer functions, modes, models, frames or axis values): each runs once",
             omitted.duplicates
         );
     }

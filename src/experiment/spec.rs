@@ -257,9 +257,12 @@ impl Mode {
                     mode.bricks = n;
                 }
                 t if t.starts_with("leap") => {
-                    let n: usize = t[4..]
-                        .parse()
-                        .map_err(|_| format!("`{t}`: expected leapN, N a sub-cube edge"))?;
+                    let n: usize = t[4..].parse().map_err(|_| {
+                        format!(
+                            "`{t}`: expected leapN, N a sub-cube edge, or `leapvalues`, \
+                                 `leapvalues-homogeneous`"
+                        )
+                    })?;
                     if !SUBCUBE_SIZES.contains(&n) {
                         return Err(format!(
                             "`{t}`: sub-cube edge must be one of {SUBCUBE_SIZES:?}"
