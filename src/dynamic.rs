@@ -416,6 +416,31 @@ impl Sequence {
                     files.len() - 1
                 )));
             }
+            // Every time step the sequence will read has the first one's size, checked from the
+            // names and headers before any step runs (a mismatch stopped it after the steps
+            // before).
+            let mut first: Option<(&std::path::Path, ([usize; 3], u8))> = None;
+            for file in &files[..steps] {
+                let Some(described) = crate::volume::dataset::describe_file(file)? else {
+                    continue;
+                };
+                match first {
+                    None => first = Some((file, described)),
+                    Some((at, expected)) if expected != described => {
+                        return Err(Error::Invalid(format!(
+                            "{}: {:?} voxels of {} bits, but {} is {:?} of {} bits: every time \
+                             step must have the same size",
+                            file.display(),
+                            described.0,
+                            described.1,
+                            at.display(),
+                            expected.0,
+                            expected.1
+                        )));
+                    }
+                    _ => {}
+                }
+            }
             Source::Folder { files }
         };
         Ok(Sequence {

@@ -316,6 +316,18 @@ fn bad_input_gives_clear_errors() {
         e.contains("b_40x40x40_uint8.raw") && e.contains("same size"),
         "{e}"
     );
+    // Found when the sequence opens, from the names, before any step runs (a probe's run
+    // stopped only after the steps before the odd one).
+    let e = match Sequence::open(&source, 2, 0.05, 8) {
+        Ok(_) => panic!("opened a folder of two sizes"),
+        Err(e) => e.to_string(),
+    };
+    assert!(
+        e.contains("b_40x40x40_uint8.raw") && e.contains("a_32x32x32_uint8.raw"),
+        "{e}"
+    );
+    // Steps beyond those asked for are not read: the first alone opens.
+    assert!(Sequence::open(&source, 1, 0.05, 8).is_ok());
     // More steps than the folder holds.
     let e = err(&source, 3);
     assert!(

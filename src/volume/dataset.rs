@@ -251,6 +251,20 @@ pub fn file_of(spec: &str, data_dir: &Path) -> Option<PathBuf> {
         .map(|e| e.path)
 }
 
+/// The dimensions and voxel width of a raw or NRRD volume file, from its name or header alone
+/// (None for another kind of file: it is known only once loaded).
+pub fn describe_file(path: &Path) -> Result<Option<([usize; 3], u8)>> {
+    let name = path.to_string_lossy();
+    if name.ends_with(".nrrd") || name.ends_with(".nhdr") {
+        return nrrd::describe_nrrd(path).map(Some);
+    }
+    let file_name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    Ok(raw::parse_raw_file_name(&file_name).map(|r| (r.dims, r.bits)))
+}
+
 /// Loads a volume file by its extension.
 pub fn load_file(path: &Path) -> Result<Volume> {
     let name = path.to_string_lossy();

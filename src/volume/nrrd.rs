@@ -58,6 +58,14 @@ pub fn load_nrrd(path: &Path) -> Result<Volume> {
     Volume::new(name, layout.dims, layout.spacing, layout.bits, data)
 }
 
+/// The dimensions and voxel width a NRRD header declares, without reading its payload.
+pub fn describe_nrrd(path: &Path) -> Result<([usize; 3], u8)> {
+    let file = crate::input::open_regular(path)?;
+    let header = read_header(&mut BufReader::new(file), path)?;
+    let layout = Layout::from_fields(&header.fields).map_err(|m| Error::format(path, m))?;
+    Ok((layout.dims, layout.bits))
+}
+
 /// The header fields that matter for the layout, by canonical name (`data file`, ...).
 struct Header {
     fields: BTreeMap<&'static str, String>,
