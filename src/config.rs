@@ -647,11 +647,26 @@ impl HardwareConfig {
     /// the feature they belong to is off (`iso.value` without `iso.enabled`), each with the
     /// reason: a setting that is shown as set while nothing reads it misleads.
     pub fn settings_without_effect(&self) -> Vec<String> {
+        let t = &self.sdram;
         self.differences_from_default()
             .into_iter()
             .filter_map(|difference| {
                 let path = difference.split(" = ").next().unwrap_or_default();
-                self.why_without_effect(path)
+                // Timing rules that another rule always outlasts bind nothing (on a datasheet
+                // t_rc is t_ras + t_rp, and t_ras at least t_rcd).
+                let outlasted = match path {
+                    "sdram.t_rc" if t.t_rc < t.t_ras + t.t_rp => Some(format!(
+                        "shorter than t_ras + t_rp = {}: ACT to PRE to ACT takes longer",
+                        t.t_ras + t.t_rp
+                    )),
+                    "sdram.t_ras" if t.t_ras < t.t_rcd => Some(format!(
+                        "shorter than t_rcd = {}: a row is open until its first READ anyway",
+                        t.t_rcd
+                    )),
+                    _ => None,
+                };
+                outlasted
+                    .or_else(|| self.why_without_effect(path).map(str::to_string))
                     .map(|why| format!("{difference} ({why})"))
             })
             .collect()

@@ -238,11 +238,11 @@ fn points(
         let (Some(s), Some(x), Some(y)) = (series_of(line), x_of(line), y_of(line)) else {
             continue;
         };
-        let p = acc
-            .entry(s)
-            .or_default()
-            .entry((x * 1000.0).round() as i64)
-            .or_default();
+        // Keyed by the exact value in numeric order (not rounded: on a log axis two swept
+        // values 0.1 % apart fell into one point).
+        let bits = x.to_bits() as i64;
+        let key = if bits < 0 { bits ^ i64::MAX } else { bits };
+        let p = acc.entry(s).or_default().entry(key).or_default();
         p.x = x;
         p.values.push(y);
         p.frames.insert(text(line, "frame"));

@@ -1550,11 +1550,13 @@ fn settings_whose_feature_is_off_are_named_as_without_effect() {
         "geometry.radius=5.0",
         "occupancy.hierarchy=true",
         "skip.policy=sample-then-leap",
+        "sdram.t_rc=3",
     ]);
     for expected in [
         "note: without effect here:",
         "occupancy.hierarchy = true (occupancy.subcube is 0: no map)",
         "skip.policy = \"sample-then-leap\" (no leaping structure)",
+        "sdram.t_rc = 3 (shorter than t_ras + t_rp = 7",
         "iso.value = 8.0 (iso.enabled is false)",
         "occupancy.distance_bits = 4 (occupancy.structure is not \"distance\")",
         "blocking.block_size = 8 (blocking.enabled is false)",

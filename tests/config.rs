@@ -132,8 +132,6 @@ fn pipeline_and_memory_fields_are_validated() {
         ("sdram.refresh_interval=5", "sdram.refresh_interval"),
         // The default timing with 4 banks: a READ can wait 19 cycles behind a refresh.
         ("sdram.refresh_interval=18", "sdram.refresh_interval"),
-        ("sdram.t_rc=6", "sdram.t_rc"),
-        ("sdram.t_ras=1", "sdram.t_ras"),
     ] {
         let err = load(vizsim::config::DEFAULT_TOML, &[set])
             .unwrap_err()

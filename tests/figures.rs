@@ -449,4 +449,19 @@ fn a_swept_field_over_a_decade_has_a_log_axis() {
         .collect();
     let at = labels.iter().position(|l| l == "1").expect("a tick 1");
     assert_eq!(labels[at..at + 7], ["1", "2", "4", "8", "16", "32", "64"]);
+    // Values close together stay points of their own (1562 and 1563 fell into one and were
+    // refused as a mean over configurations).
+    let close: Vec<Value> = [100, 1562, 1563]
+        .iter()
+        .map(|&n| {
+            line(
+                "ert",
+                0,
+                json!({ "sdram.refresh_interval": n }),
+                n as f64,
+                40.0,
+            )
+        })
+        .collect();
+    vizsim::figures::write_all(&close, &scratch("log-close")).unwrap();
 }

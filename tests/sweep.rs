@@ -1694,7 +1694,13 @@ fn merge_refuses_shards_of_two_versions_of_an_experiment() {
     };
     let shard = |rays: &str, shard: &str, name: &str| {
         let file = dir.join(format!("{name}.toml"));
-        std::fs::write(&file, text(rays)).unwrap();
+        // Shard "d" has another description: the same runs, so it merges.
+        let described = if name == "d" {
+            text(rays).replace("[frames]", "description = \"edited\"\n[frames]")
+        } else {
+            text(rays)
+        };
+        std::fs::write(&file, described).unwrap();
         let out = dir.join(name);
         vizsim_ok(&[
             "sweep",
@@ -1712,6 +1718,8 @@ fn merge_refuses_shards_of_two_versions_of_an_experiment() {
     let c = shard("8, 32", "1/2", "c");
     let arg = |p: &PathBuf| p.to_str().unwrap().to_string();
     vizsim_ok(&["merge", &arg(&a), &arg(&b), "--out", &arg(&dir.join("ab"))]);
+    let d = shard("8, 16", "1/2", "d");
+    vizsim_ok(&["merge", &arg(&a), &arg(&d), "--out", &arg(&dir.join("ad"))]);
     let merged = dir.join("ac");
     vizsim_fails(
         &["merge", &arg(&a), &arg(&c), "--out", &arg(&merged)],

@@ -40,7 +40,7 @@ pub const DEFAULT_WARMUP_RAYS: usize = 16;
 /// The fewest units a frame must have to be sampled: a frame with fewer is simulated whole (every
 /// unit measured, the exact cycles). Sampling was validated on 256×256 frames (512 units); on
 /// smaller ones the estimates fell low (by 1.1–1.3 % on average at 128×128 and 192×192, 4 % at
-/// 64×64) and their intervals covered 86–90 % of the exact figures; the exact simulation of such
+/// 64×64) and their intervals covered 85–90 % of the exact figures; the exact simulation of such
 /// a frame takes a second or less (docs/sampling.md, "Limits").
 pub const MIN_SAMPLED_UNITS: usize = 512;
 /// The fewest strata a sampled frame is cut into, whatever the rate: the interval rests on the

@@ -164,33 +164,6 @@ impl SdramTiming {
                 ),
             ));
         }
-        // A datasheet's row cycle is at least the row's active and precharge times, and a row is
-        // active at least until it can be read; a shorter t_rc or t_ras would bind nothing and
-        // leave the run as if it were longer.
-        if self.t_ras < self.t_rcd {
-            return Err(Error::config(
-                source,
-                "sdram.t_ras",
-                format!(
-                    "{} is shorter than ACT to READ (sdram.t_rcd = {}), so it would bind nothing; \
-                     allowed t_rcd ({})..={MAX_TIMING_CYCLES}",
-                    self.t_ras, self.t_rcd, self.t_rcd
-                ),
-            ));
-        }
-        if self.t_rc < self.t_ras + self.t_rp {
-            return Err(Error::config(
-                source,
-                "sdram.t_rc",
-                format!(
-                    "{} is shorter than a row's active and precharge times (t_ras + t_rp = {}), so \
-                     it would bind nothing; allowed {}..={MAX_TIMING_CYCLES}",
-                    self.t_rc,
-                    self.t_ras + self.t_rp,
-                    self.t_ras + self.t_rp
-                ),
-            ));
-        }
         let wait = self.longest_refresh_wait(banks);
         if self.refresh && self.refresh_interval < wait {
             return Err(Error::config(

@@ -157,7 +157,15 @@ impl ResultsArgs {
         // Results filtered away by --model are named so (the folder has results, of the other
         // model).
         if let Some(m) = self.model.as_deref().filter(|_| lines.is_empty()) {
-            anyhow::bail!("{}: no {m}-model results", self.dir.display());
+            anyhow::bail!(
+                "{}: no {m}-model results{}",
+                self.dir.display(),
+                if self.frame_step > 1 {
+                    " of the frames --frame-step keeps"
+                } else {
+                    ""
+                }
+            );
         }
         // Key order, not completion order: tables and charts sum in this order.
         lines.sort_by(|a, b| a["key"].as_str().cmp(&b["key"].as_str()));

@@ -611,18 +611,31 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<Merged> {
         if let Some(name) = store::experiment_name(dir)? {
             same_experiment(&name, dir)?;
         }
+        // The runs the version expands to (their keys), not the file's text: a description
+        // edited between shards changes no run.
         let file = crate::input::read_existing(&dir.join(store::RESOLVED))?
             .and_then(|bytes| serde_json::from_slice::<Value>(&bytes).ok())
-            .and_then(|resolved| resolved.get("experiment").cloned());
+            .and_then(|resolved| {
+                let keys: std::collections::BTreeSet<String> = resolved
+                    .get("runs")?
+                    .as_array()?
+                    .iter()
+                    .filter_map(|r| r.get("key")?.as_str().map(str::to_string))
+                    .collect();
+                Some(Value::from(keys.into_iter().collect::<Vec<_>>()))
+            });
         if let Some(file) = file {
             match &version {
                 None => version = Some((file, described(dir))),
                 Some((first, at)) if *first != file => {
                     return Err(Error::Invalid(format!(
                         "{} and {at} were swept from different versions of experiment `{}` \
-                         (its file changed between them); merge the shards of one version",
+                         (its runs changed between them); merge the shards of one version",
                         described(dir),
-                        file["name"].as_str().unwrap_or_default()
+                        experiment
+                            .as_ref()
+                            .map(|(n, _)| n.as_str())
+                            .unwrap_or_default()
                     )))
                 }
                 _ => {}
