@@ -192,19 +192,11 @@ fn split_fields(lines: &[&Value], x_axis: Option<&str>) -> (Vec<String>, Vec<Str
 fn configuration(line: &Value) -> String {
     let mut text_of = vec![raw_dataset(line)];
     text_of.extend(
-        [
-            "model",
-            "tf",
-            "mode",
-            "map",
-            "dt",
-            "brick",
-            "width",
-            "height",
-            "sample_rate",
-        ]
-        .iter()
-        .filter_map(|f| field_text(line, f).map(|v| format!("{f} {v}"))),
+        crate::tables::CONFIGURATION_FIELDS
+            .iter()
+            // The dataset as its raw name, first (above).
+            .filter(|f| **f != "dataset")
+            .filter_map(|f| field_text(line, f).map(|v| format!("{f} {v}"))),
     );
     text_of.push(line.get("axes").map(Value::to_string).unwrap_or_default());
     text_of.join(", ")

@@ -339,6 +339,23 @@ pub struct Table {
     pub made_by: Option<String>,
 }
 
+/// The fields of a result line that, with its swept fields (`axes`), say which configuration
+/// it ran: the run's own, those of sequence results (map strategy, time step length, brick),
+/// the image size and the sampling rate. A table or chart never averages over two values of
+/// one.
+pub const CONFIGURATION_FIELDS: [&str; 10] = [
+    "dataset",
+    "tf",
+    "mode",
+    "model",
+    "map",
+    "dt",
+    "brick",
+    "width",
+    "height",
+    "sample_rate",
+];
+
 /// Builds the table of `metric` for the lines of one model. Every field that varies among the
 /// lines, other than the frame, must be a row or the column field: averaging over a swept
 /// hardware field silently would mix configurations. The title is `subject` followed by what a
@@ -356,21 +373,7 @@ pub fn build(
     for line in lines {
         // The run's own fields, those of sequence results (map strategy, time step length,
         // brick) and the image size: any that varies must be a row or the column.
-        let mut fields: Vec<String> = [
-            "dataset",
-            "tf",
-            "mode",
-            "model",
-            "map",
-            "dt",
-            "brick",
-            "width",
-            "height",
-            "sample_rate",
-        ]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
+        let mut fields: Vec<String> = CONFIGURATION_FIELDS.iter().map(|s| s.to_string()).collect();
         if let Some(axes) = line.get("axes").and_then(Value::as_object) {
             fields.extend(axes.keys().cloned());
         }
