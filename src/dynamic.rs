@@ -145,7 +145,7 @@ pub fn check_modelled(hw: &HardwareConfig, used: UpdateUse) -> Result<()> {
     }
     if used == UpdateUse::Measure && hw.occupancy.hierarchy {
         return refuse(
-            "occupancy.hierarchy = true".into(),
+            "occupancy.hierarchy = true (--hierarchy)".into(),
             "update measures the map's bits without the hierarchy's byte layout",
         );
     }
