@@ -35,6 +35,15 @@ pub fn iso_entry(colour: [f32; 3], lut_bits: u32) -> [u16; 4] {
     [c[0], c[1], c[2], unit as u16]
 }
 
+/// The lower corner voxel of the 2×2×2 cell a sample at the fixed-point position `pos` (units
+/// of 2^-pf voxels, inside the box) interpolates in, clamped to dim − 2 at the upper face. The
+/// one definition: the interpolation, the cycle model's memory addresses and the leaping
+/// structures' cell tests all use it.
+#[inline(always)]
+pub fn base_voxel(dims: [usize; 3], pos: [i64; 3], pf: u32) -> [usize; 3] {
+    [0, 1, 2].map(|a| ((pos[a] >> pf) as usize).min(dims[a] - 2))
+}
+
 /// The 2×2×2 neighbourhood of a fixed-point position (units of 2^-pf voxels, inside the box)
 /// and its trilinear weights: the position's fraction truncated to `wb` bits, w in [0, 2^wb]
 /// (2^wb only at the upper face, where the lower corner is dim-2).
@@ -51,13 +60,11 @@ pub struct Neighbourhood {
 impl Neighbourhood {
     #[inline(always)]
     pub fn new(dims: [usize; 3], pos: [i64; 3], pf: u32, wb: u32) -> Self {
-        let mut base = [0usize; 3];
+        let base = base_voxel(dims, pos, pf);
         let mut weights = [0u64; 3];
         for a in 0..3 {
             let p = pos[a] as u64;
-            let b = ((p >> pf) as usize).min(dims[a] - 2);
-            let frac = p - ((b as u64) << pf);
-            base[a] = b;
+            let frac = p - ((base[a] as u64) << pf);
             weights[a] = if pf >= wb {
                 frac >> (pf - wb)
             } else {

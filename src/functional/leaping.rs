@@ -293,8 +293,7 @@ impl<'a> DistanceLeaping<'a> {
     /// `FixedRenderer::base_voxel`).
     #[inline(always)]
     pub fn base_voxel(&self, pos: [i64; 3]) -> [usize; 3] {
-        let d = self.volume.dims;
-        [0, 1, 2].map(|a| ((pos[a] >> self.pos_frac_bits) as usize).min(d[a] - 2))
+        super::arith::base_voxel(self.volume.dims, pos, self.pos_frac_bits)
     }
 }
 
@@ -407,8 +406,7 @@ impl<'a, const HOMOGENEOUS: bool> LeapValueLeaping<'a, HOMOGENEOUS> {
         } else {
             // The cell's eight words are identical when all are unflagged with one density
             // (`nearest` is one of them).
-            let (pf, d) = (self.pos_frac_bits, self.volume.dims);
-            let base = [0, 1, 2].map(|a| ((pos[a] >> pf) as usize).min(d[a] - 2));
+            let base = super::arith::base_voxel(self.volume.dims, pos, self.pos_frac_bits);
             let same = (0..8).all(|c| {
                 let i = self.volume.index([
                     base[0] + (c & 1),

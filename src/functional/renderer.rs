@@ -4,8 +4,8 @@
 //! each); the published cost is one step per 12.5 ns (`clock.step_time_ns`).
 
 use super::arith::{
-    interpolate, interpolate_exact, interpolate_low_bytes, iso_entry, iso_threshold, Accumulator,
-    ClassificationTable, Compositor, Neighbourhood,
+    base_voxel, interpolate, interpolate_exact, interpolate_low_bytes, iso_entry, iso_threshold,
+    Accumulator, ClassificationTable, Compositor, Neighbourhood,
 };
 use std::borrow::Cow;
 
@@ -382,8 +382,7 @@ impl<'a> FixedRenderer<'a> {
     /// address source of its memory request.
     pub fn base_voxel(&self, pos: [i64; 3]) -> [usize; 3] {
         let pf = self.widths.position_frac_bits;
-        let d = self.volume.dims;
-        [0, 1, 2].map(|a| ((pos[a] >> pf) as usize).min(d[a] - 2))
+        base_voxel(self.volume.dims, pos, pf)
     }
 
     /// Fixed-point setup of the ray through pixel (px, py).
