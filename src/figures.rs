@@ -385,7 +385,7 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
         // Sampled simulation (docs/sampling.md): the figures are estimates, marked ≈.
         let model_title = if lines
             .iter()
-            .any(|l| text(l, "model") == *model && l["sampled"] == Value::Bool(true))
+            .any(|l| text(l, "model") == *model && crate::tables::is_estimate(l))
         {
             format!("{model} model, ≈ sampled")
         } else {

@@ -356,6 +356,16 @@ pub const CONFIGURATION_FIELDS: [&str; 10] = [
     "sample_rate",
 ];
 
+/// Whether a result line's timing is a sampled estimate: sampled, with an interval (a frame
+/// simulated whole under `--sample`, one of fewer than 512 units or at rate 1, is exact).
+pub fn is_estimate(line: &Value) -> bool {
+    line.get("sampled") == Some(&Value::Bool(true))
+        && line
+            .get("cycles_ci95")
+            .and_then(Value::as_f64)
+            .is_some_and(|c| c > 0.0)
+}
+
 /// Builds the table of `metric` for the lines of one model. Every field that varies among the
 /// lines, other than the frame, must be a row or the column field: averaging over a swept
 /// hardware field silently would mix configurations. The title is `subject` followed by what a
@@ -515,7 +525,7 @@ pub fn build(
             metric,
             Metric::Steps | Metric::Samples | Metric::Skippable | Metric::PositionsCut
         );
-        cell.3 |= !counted && line.get("sampled") == Some(&Value::Bool(true));
+        cell.3 |= !counted && is_estimate(line);
     }
     let row_keys: Vec<Key> = cells
         .keys()
@@ -1112,6 +1122,11 @@ mod tests {
 
         let steps = build(&lines, Metric::Steps, &rows, "mode", "t").unwrap();
         assert!(!steps.markdown().contains('≈'));
+        // A sampled frame simulated whole (no interval: a small frame, or rate 1) is exact.
+        let mut whole = line("ert", 0, 800, true);
+        whole["cycles_ci95"] = 0.0.into();
+        let exact = build(&[&whole], Metric::Cycles, &rows, "mode", "t").unwrap();
+        assert!(!exact.markdown().contains('≈'), "{}", exact.markdown());
         assert_eq!(steps.csv().lines().next(), Some("dataset,none,ERT"));
 
         // A swept column field: the marks name the columns as the header does.
