@@ -30,6 +30,7 @@ pub mod transfer;
 pub mod volume;
 // 2-way blocking (issue 16).
 pub mod blocking;
+pub mod bound;
 // Ray start and end (issue 15).
 pub mod bricks;
 pub mod budget;

@@ -33,6 +33,9 @@ pub struct ImagePoint {
     pub field: String,
     pub bits: u32,
     pub comparison: Comparison,
+    /// Invariant (c) at these widths: the error against the bound they predict (`bound`);
+    /// None when the base configuration is outside the bound (`PrecisionReport::no_bound`).
+    pub bound: Option<crate::bound::BoundCheck>,
 }
 
 #[derive(Clone, Debug, serde::Serialize)]
@@ -55,6 +58,20 @@ pub struct PrecisionReport {
     pub transfer_function: String,
     pub image: Vec<ImagePoint>,
     pub cost: Vec<CostPoint>,
+    /// Why the image points have no predicted bound, when they have none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub no_bound: Option<String>,
+}
+
+impl PrecisionReport {
+    /// Image points whose fixed-point image is over its predicted bound somewhere (a broken
+    /// invariant (c)).
+    pub fn points_over_bound(&self) -> Vec<&ImagePoint> {
+        self.image
+            .iter()
+            .filter(|p| p.bound.as_ref().is_some_and(|b| !b.holds()))
+            .collect()
+    }
 }
 
 /// The configuration with one field changed, validated like `--set`. Positions must keep at
@@ -91,6 +108,7 @@ pub fn sweep(base: &RunDescription, volume: &Volume) -> Result<PrecisionReport> 
     let mut plain_hardware = base.hardware.clone();
     plain_hardware.occupancy.subcube = 0;
     plain_hardware.occupancy.hierarchy = false;
+    let no_bound = crate::bound::unsupported(&base.hardware, &base.settings());
     let mut image = Vec::new();
     for (field, range) in IMAGE_AXES {
         for bits in range.clone() {
@@ -105,10 +123,15 @@ pub fn sweep(base: &RunDescription, volume: &Volume) -> Result<PrecisionReport> 
                 ..base.clone()
             };
             let frame = frame_of(&point)?.frame;
+            let bound = match no_bound {
+                None => Some(run::check_error_bound(&point, volume, Some(&frame))?),
+                Some(_) => None,
+            };
             image.push(ImagePoint {
                 field: field.to_string(),
                 bits,
                 comparison: compare(&frame.pixels, &reference.frame.pixels, width, height)?,
+                bound,
             });
         }
     }
@@ -149,6 +172,7 @@ pub fn sweep(base: &RunDescription, volume: &Volume) -> Result<PrecisionReport> 
         transfer_function: reference.transfer_function,
         image,
         cost,
+        no_bound,
     })
 }
 
@@ -171,13 +195,19 @@ pub fn write_report(report: &PrecisionReport, out_dir: &Path) -> Result<Vec<Path
     let stem = out_dir.join(report.dataset.replace(':', "-"));
     let mut written = Vec::new();
     let mut csv = String::from(
-        "dataset,field,bits,max_abs_error_r,max_abs_error_g,max_abs_error_b,max_abs_error_a,mean_abs_error,psnr_db,pixels_over_1_lsb\n",
+        "dataset,field,bits,max_abs_error_r,max_abs_error_g,max_abs_error_b,max_abs_error_a,mean_abs_error,psnr_db,pixels_over_1_lsb,bound_max_r,bound_max_g,bound_max_b,bound_mean,channels_over_bound\n",
     );
     for p in &report.image {
         let c = &p.comparison;
+        let bound = p.bound.as_ref().map_or(",,,,".to_string(), |b| {
+            format!(
+                "{},{},{},{:.4},{}",
+                b.max_bound[0], b.max_bound[1], b.max_bound[2], b.mean_bound, b.violations
+            )
+        });
         let _ = writeln!(
             csv,
-            "{},{},{},{},{},{},{},{:.5},{:.3},{}",
+            "{},{},{},{},{},{},{},{:.5},{:.3},{},{bound}",
             report.dataset,
             p.field,
             p.bits,
@@ -196,17 +226,32 @@ pub fn write_report(report: &PrecisionReport, out_dir: &Path) -> Result<Vec<Path
 
     let mut md = format!(
         "# Fixed-point precision: {} ({})\n\n{}\n\nFixed-point model (default widths, one field changed at a time) \
-         against the float reference. Errors in 8-bit steps; PSNR over RGB.\n\n\
-         | field | bits | max error (R,G,B,A) | mean error | PSNR dB | pixels > 1 LSB |\n|---|---:|---|---:|---:|---:|\n",
+         against the float reference. Errors in 8-bit steps; PSNR over RGB. The bound is the \
+         error the widths predict per pixel (invariant (c), docs/precision.md): its largest \
+         value per channel, its mean over the pixels' colour channels, and the pixel channels \
+         whose error exceeds it (0: the invariant holds).{}\n\n\
+         | field | bits | max error (R,G,B,A) | mean error | PSNR dB | pixels > 1 LSB | bound max (R,G,B) | bound mean | over bound |\n|---|---:|---|---:|---:|---:|---|---:|---:|\n",
         report.dataset,
         report.transfer_function,
         provenance(&report.made_by, &report.hardware_changes),
+        report
+            .no_bound
+            .as_ref()
+            .map_or(String::new(), |reason| format!(" This configuration has {reason}.")),
     );
     for p in &report.image {
         let c = &p.comparison;
+        let (bound_max, bound_mean, over) = match &p.bound {
+            Some(b) => (
+                format!("{:?}", &b.max_bound[..3]),
+                format!("{:.3}", b.mean_bound),
+                b.violations.to_string(),
+            ),
+            None => ("–".into(), "–".into(), "–".into()),
+        };
         let _ = writeln!(
             md,
-            "| {} | {} | {:?} | {:.4} | {:.2} | {} |",
+            "| {} | {} | {:?} | {:.4} | {:.2} | {} | {bound_max} | {bound_mean} | {over} |",
             p.field, p.bits, c.max_abs_error, c.mean_abs_error, c.psnr_db, c.pixels_over_1_lsb
         );
     }

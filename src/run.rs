@@ -686,6 +686,10 @@ pub struct RunReport {
     /// once per prepared run).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub leap_values: Option<LeapValueStats>,
+    /// Invariant (c), when the run was asked to check it (`check_error_bound`): the
+    /// fixed-point image against the float reference and the bound its widths predict.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error_bound: Option<crate::bound::BoundCheck>,
     #[serde(skip)]
     pub frame: Frame,
 }
@@ -941,6 +945,7 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         // fast the frame's timing was found).
         sim_cycles_per_second: m.cycles.map(|c| c as f64 / wall_seconds.max(1e-12)),
         leap_values,
+        error_bound: None,
         measurements: m,
         frame,
     })
@@ -1020,4 +1025,40 @@ fn simulate_memory<M: VoxelMemory>(
             Ok((result, memory.stats_json()))
         }
     }
+}
+
+/// Invariant (c): `run`'s frame from the fixed-point model and the float reference, every pixel
+/// checked against the error bound its widths predict (`bound`). `fixed` is the fixed-point
+/// frame when the caller has it (a step or cycle run of this description; their images are
+/// equal), else it is rendered here. An error when the configuration is outside the bound.
+pub fn check_error_bound(
+    run: &RunDescription,
+    volume: &Volume,
+    fixed: Option<&Frame>,
+) -> Result<crate::bound::BoundCheck> {
+    let settings = run.settings();
+    if let Some(reason) = crate::bound::unsupported(&run.hardware, &settings) {
+        return Err(Error::Invalid(reason));
+    }
+    let frame_of = |model: Model| -> Result<Frame> {
+        let run = RunDescription {
+            model,
+            sample: None,
+            ..run.clone()
+        };
+        Ok(execute(&run, &prepare(&run, volume)?, Probes::default())?.frame)
+    };
+    let rendered;
+    let fixed = match fixed {
+        Some(frame) => frame,
+        None => {
+            rendered = frame_of(Model::Step)?;
+            &rendered
+        }
+    };
+    let float = frame_of(Model::Float)?;
+    let tf = transfer::resolve_for(&run.tf, volume)?;
+    let bound = crate::bound::ErrorBound::new(volume, &tf, &settings, &run.hardware)?
+        .predict(&run.camera(volume)?);
+    crate::bound::check(fixed, &float, &bound)
 }

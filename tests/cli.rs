@@ -412,6 +412,67 @@ fn precision_sweep_writes_tables_and_plots_and_skip_widths_never_change_the_imag
             .unwrap()
     };
     assert!(psnr(12) > psnr(4));
+    // Every width's image is within the bound those widths predict, and the bound narrows
+    // from 4 to 12 increment bits.
+    let image = report["image"].as_array().unwrap();
+    assert!(image.iter().all(|p| p["bound"]["violations"] == 0));
+    let bound = |bits: u64| {
+        image
+            .iter()
+            .find(|p| p["field"] == "ray.increment_frac_bits" && p["bits"] == bits)
+            .map(|p| p["bound"]["mean_bound"].as_f64().unwrap())
+            .unwrap()
+    };
+    assert!(bound(12) < bound(4), "{} {}", bound(12), bound(4));
+    let md = std::fs::read_to_string(dir.join("phantom-sphere-32.md")).unwrap();
+    assert!(
+        md.contains("| bound max (R,G,B) | bound mean | over bound |"),
+        "{md}"
+    );
+}
+
+/// `--check-bound` checks invariant (c) on the run's frame (render: either model; sim: the
+/// cycle model's image) and writes it into the JSON; a configuration outside the bound is
+/// refused before anything is written.
+#[test]
+fn check_bound_reports_invariant_c_and_refuses_what_it_does_not_cover() {
+    let dir = scratch("check-bound");
+    let frame = [
+        "--dataset",
+        "phantom:shells:32",
+        "--size",
+        "32x32",
+        "--view",
+        "orbit:9/72",
+    ];
+    for command in [
+        &["render", "--model", "fixed"][..],
+        &["render"][..],
+        &["sim"][..],
+    ] {
+        let json = dir.join(format!("{}.json", command.len()));
+        let png = dir.join(format!("{}.png", command.len()));
+        let mut args: Vec<&str> = command.to_vec();
+        args.extend(frame);
+        args.extend(["--check-bound", "-o", png.to_str().unwrap()]);
+        args.extend(["--json", json.to_str().unwrap()]);
+        let out = succeeds(&args);
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            stdout.contains("invariant (c): fixed vs float")
+                && stdout.contains("every pixel within its bound (1024 pixels)"),
+            "{command:?}: {stdout}"
+        );
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        assert_eq!(report["error_bound"]["violations"], 0, "{command:?}");
+        assert_eq!(report["error_bound"]["pixels"], 1024, "{command:?}");
+    }
+    let png = dir.join("shaded.png");
+    let mut args = vec!["render", "--model", "fixed", "--shading", "--check-bound"];
+    args.extend(frame);
+    args.extend(["-o", png.to_str().unwrap()]);
+    assert_fails(&args, &["--check-bound", "shading"], &png);
 }
 
 #[test]

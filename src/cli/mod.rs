@@ -489,6 +489,30 @@ pub fn leaping_text(leaping: &vizsim::functional::renderer::Leaping) -> String {
     }
 }
 
+/// `--check-bound` (render, sim): refused before anything runs when the run is outside the
+/// predicted bound.
+pub fn refuse_unbounded(desc: &vizsim::run::RunDescription) -> Result<()> {
+    if let Some(reason) = vizsim::bound::unsupported(&desc.hardware, &desc.settings()) {
+        anyhow::bail!("--check-bound: {reason} (docs/precision.md, \"The predicted bound\")");
+    }
+    Ok(())
+}
+
+/// `--check-bound` after the run: invariant (c) checked on its frame (the fixed-point image:
+/// the step model's, or the cycle model's, equal to it), the line to print, or the error of a
+/// broken invariant.
+pub fn check_bound(
+    report: &mut vizsim::run::RunReport,
+    volume: &vizsim::volume::Volume,
+) -> Result<String> {
+    let fixed = (report.run.model != vizsim::run::Model::Float).then_some(&report.frame);
+    let check = vizsim::run::check_error_bound(&report.run, volume, fixed)?;
+    anyhow::ensure!(check.holds(), "invariant (c) broken: {}", check.describe());
+    let line = format!("invariant (c): {}", check.describe());
+    report.error_bound = Some(check);
+    Ok(line)
+}
+
 /// The lines `render` and `sim` print under their summary for the features a run has on (ray
 /// start and end, iso-surface mode, a leaping structure's memory, blocking), in that order.
 pub fn feature_lines(config: &HardwareConfig, m: &vizsim::run::Measurements) -> Vec<String> {

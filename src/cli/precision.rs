@@ -74,5 +74,22 @@ pub fn run(args: PrecisionArgs) -> Result<()> {
         println!("wrote {}", path.display());
     }
     println!("{} in {:.1} s", volume.name, start.elapsed().as_secs_f64());
+    if let Some(reason) = &report.no_bound {
+        println!("{reason}: the report gives the measured error only");
+    }
+    // The report is written either way: it shows where the bound broke.
+    let over = report.points_over_bound();
+    anyhow::ensure!(
+        over.is_empty(),
+        "invariant (c) broken at {} of {} widths, first {} = {}: {}",
+        over.len(),
+        report.image.len(),
+        over[0].field,
+        over[0].bits,
+        over[0]
+            .bound
+            .as_ref()
+            .map_or(String::new(), |b| b.describe())
+    );
     Ok(())
 }

@@ -28,6 +28,12 @@ pub struct RenderArgs {
     /// leaping applies to `fixed`.
     #[arg(long, value_enum, default_value = "float")]
     model: RenderModel,
+    /// Also check invariant (c): render the other model too and check every pixel of the
+    /// fixed-point image against the float reference, within the error bound the bit widths
+    /// predict (docs/precision.md). Prints the measured error and the bound; exits non-zero,
+    /// writing nothing, when a pixel is over its bound.
+    #[arg(long)]
+    check_bound: bool,
     #[command(flatten)]
     hardware: HardwareArgs,
 }
@@ -49,6 +55,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         "--subcube, --hierarchy and --occupancy apply to --model fixed (the float reference takes every sample)"
     );
     let desc = args.frame.describe(model, &args.hardware)?;
+    if args.check_bound {
+        super::refuse_unbounded(&desc)?;
+    }
     // Output paths are checked before the render, not after it.
     let outputs: Vec<(&str, &std::path::Path)> = [
         ("--output", Some(&args.output)),
@@ -74,7 +83,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
     use std::fmt::Write as _;
     let said = vizsim::output::all_or_none(|| -> Result<String> {
         let mut said = String::new();
-        let report = run::run(&desc, args.frame.data.dir()?.as_deref(), Probes::default())?;
+        desc.validate()?;
+        let volume =
+            vizsim::volume::dataset::load(&desc.dataset, args.frame.data.dir()?.as_deref())?;
+        let mut report = run::execute(&desc, &run::prepare(&desc, &volume)?, Probes::default())?;
+        let bound_line = match args.check_bound {
+            true => Some(super::check_bound(&mut report, &volume)?),
+            false => None,
+        };
         report.frame.write_png(&args.output)?;
         if let Some(path) = &args.rays {
             report.frame.write_rays_csv(path)?;
@@ -106,6 +122,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         args.output.display()
     )?;
         for line in super::feature_lines(&report.run.hardware, &report.measurements) {
+            writeln!(said, "{line}")?;
+        }
+        if let Some(line) = bound_line {
             writeln!(said, "{line}")?;
         }
         if let Some(json) = &args.json {

@@ -45,6 +45,12 @@ pub struct SimArgs {
     /// The run and its statistics as JSON.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Also check invariant (c): render the float reference and check every pixel of the
+    /// frame (the cycle model's image, equal to the fixed-point model's) within the error
+    /// bound the bit widths predict (docs/precision.md); exits non-zero, writing nothing, when
+    /// a pixel is over its bound.
+    #[arg(long)]
+    check_bound: bool,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy)]
@@ -78,6 +84,9 @@ pub fn run(args: SimArgs) -> Result<()> {
          need every cycle"
     );
     desc.validate()?;
+    if args.check_bound {
+        super::refuse_unbounded(&desc)?;
+    }
     // Output paths are checked before the simulation, not after it.
     let outputs: Vec<(&str, &std::path::Path)> = [
         ("--output", &args.output),
@@ -148,7 +157,13 @@ pub fn run(args: SimArgs) -> Result<()> {
             waveform: waveform.as_mut(),
             command_trace: command_trace.as_mut(),
         };
-        let report = run::run(&desc, args.frame.data.dir()?.as_deref(), probes)?;
+        let volume =
+            vizsim::volume::dataset::load(&desc.dataset, args.frame.data.dir()?.as_deref())?;
+        let mut report = run::execute(&desc, &run::prepare(&desc, &volume)?, probes)?;
+        let bound_line = match args.check_bound {
+            true => Some(super::check_bound(&mut report, &volume)?),
+            false => None,
+        };
         if let Some(t) = command_trace {
             let commands = t.finish()?;
             writeln!(
@@ -251,6 +266,9 @@ pub fn run(args: SimArgs) -> Result<()> {
             }
         }
         for line in super::feature_lines(&report.run.hardware, &report.measurements) {
+            writeln!(said, "{line}")?;
+        }
+        if let Some(line) = bound_line {
             writeln!(said, "{line}")?;
         }
         if let Some(path) = &args.output {

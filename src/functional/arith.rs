@@ -285,8 +285,19 @@ impl Compositor {
 
     /// A table value (lut_bits) in accumulator units, rounded to nearest.
     #[inline(always)]
-    fn widen(&self, x: u16) -> u32 {
+    pub fn widen(&self, x: u16) -> u32 {
         self.widened[x as usize]
+    }
+
+    /// The raw ERT threshold (accumulator units): the ray stops once A reaches it; `u64::MAX`
+    /// without ERT.
+    pub fn threshold(&self) -> u64 {
+        self.threshold
+    }
+
+    /// The background in accumulator units, as `finish` composites it.
+    pub fn background(&self) -> [u32; 4] {
+        self.background
     }
 
     /// Composites one classified sample; returns true when the ray has reached the ERT threshold.

@@ -1,0 +1,719 @@
+//! Invariant (c) of the brief (section 5): the fixed-point image stays within the error its bit
+//! widths predict, against the float reference.
+//!
+//! The prediction is an interval per ray that provably holds both models' values: for each
+//! sample k of the float ray, every position either model can sample is inside a box around the
+//! exact position (the fixed start rounded to `position_frac_bits`, the increment to
+//! `increment_frac_bits` and so drifting by k half-units, the trilinear weights truncated to
+//! `weight_bits`, the float reference's f32 rounding). The box gives a density interval (the
+//! trilinear interpolant's range over it, exact: the interpolant is multilinear between lattice
+//! planes, so its extremes lie on the corners of the box cut at those planes), and the density
+//! interval an interval of colour and opacity that holds the float classification (the
+//! transfer function, linear between entries, over the interval) and the fixed one (the entries
+//! its rounded density can index, as rounded to `lut_bits` and widened to the accumulators). Front-to-back
+//! compositing is monotone in each input, so the intervals carry through it, each fixed-point
+//! product widening them by its rounding (`accumulator_bits`). Two events make a model's
+//! sample set uncertain, and the interval takes both outcomes: a sample near a box face that
+//! the fixed ray may not have (its positions are rounded; it never has one the float ray lacks),
+//! and early ray termination that one model may reach before the other (the lower bound stops
+//! accumulating while the upper goes on). The pixel's bound is the width of the final interval
+//! in 8-bit levels, after both models' output rounding.
+//!
+//! So the bound depends on the widths and on the frame (the data's gradients and the transfer
+//! function's slopes where the rays go); nothing of the fixed-point model's result enters it.
+//! It covers classified direct volume rendering with any leaping structure that keeps the image
+//! (occupancy maps, distance volumes, blocking, bricks), ERT, perspective and interleaved
+//! sampling; shading, the iso surface, lossy leap values, clipping and geometry are outside it
+//! (`unsupported`). docs/precision.md gives the figures.
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::camera::{interleave_ray, Camera, Ray};
+use crate::config::{HardwareConfig, LeapStructure};
+use crate::error::{Error, Result};
+use crate::functional::arith::{ClassificationTable, Compositor};
+use crate::functional::Widths;
+use crate::render::{clip_to_box, sample_range, Frame, RenderSettings};
+use crate::transfer::{correct_opacity, TransferFunction};
+use crate::volume::Volume;
+
+/// Slack for the float reference's f32 arithmetic in one compositing step (its sums and
+/// products of values in [0, 1] round by at most a few units of 2^-24).
+const FLOAT_STEP_SLACK: f64 = 1.0 / (1u64 << 20) as f64;
+
+/// Why a run's fixed-point image has no predicted bound, if it has none.
+pub fn unsupported(config: &HardwareConfig, settings: &RenderSettings) -> Option<String> {
+    let reason = if settings.shading {
+        "shading (the gradient's and the lighting's rounding are not in the bound)"
+    } else if config.iso.enabled {
+        "the iso surface (a hit moves by a whole sample when the density crosses the iso value)"
+    } else if config.occupancy.structure == LeapStructure::LeapValues {
+        "leap values (homogeneous regions are lossy by design, and their two models follow \
+         their own protocol)"
+    } else if !config.clip.is_off() {
+        "clipping (the two models cut a ray at rounded positions; the bound does not yet take \
+         the samples near a clip plane as uncertain)"
+    } else if !config.geometry.is_off() {
+        "geometry (the two models end a ray at rounded positions)"
+    } else {
+        return None;
+    };
+    Some(format!("no predicted error bound with {reason}"))
+}
+
+/// Per table entry and channel (R, G, B, A), a value range, with blocks of `BLOCK` entries
+/// summarised so that the range over many entries is found in a few dozen reads even in a
+/// 16-bit table.
+struct EntryRanges {
+    lo: Vec<[f64; 4]>,
+    hi: Vec<[f64; 4]>,
+    block_lo: Vec<[f64; 4]>,
+    block_hi: Vec<[f64; 4]>,
+}
+
+const BLOCK: usize = 64;
+
+impl EntryRanges {
+    fn new(lo: Vec<[f64; 4]>, hi: Vec<[f64; 4]>) -> Self {
+        let fold = |values: &[[f64; 4]], pick: fn(f64, f64) -> f64, start: f64| {
+            values
+                .chunks(BLOCK)
+                .map(|chunk| {
+                    chunk.iter().fold([start; 4], |acc, v| {
+                        std::array::from_fn(|c| pick(acc[c], v[c]))
+                    })
+                })
+                .collect::<Vec<_>>()
+        };
+        let block_lo = fold(&lo, f64::min, f64::INFINITY);
+        let block_hi = fold(&hi, f64::max, f64::NEG_INFINITY);
+        EntryRanges {
+            lo,
+            hi,
+            block_lo,
+            block_hi,
+        }
+    }
+
+    /// The lowest and highest values over entries first..=last.
+    fn range(&self, first: usize, last: usize) -> ([f64; 4], [f64; 4]) {
+        let mut lo = [f64::INFINITY; 4];
+        let mut hi = [f64::NEG_INFINITY; 4];
+        let mut take = |l: &[f64; 4], h: &[f64; 4]| {
+            for c in 0..4 {
+                lo[c] = lo[c].min(l[c]);
+                hi[c] = hi[c].max(h[c]);
+            }
+        };
+        let mut i = first;
+        while i <= last {
+            if i.is_multiple_of(BLOCK) && i + BLOCK - 1 <= last {
+                take(&self.block_lo[i / BLOCK], &self.block_hi[i / BLOCK]);
+                i += BLOCK;
+            } else {
+                take(&self.lo[i], &self.hi[i]);
+                i += 1;
+            }
+        }
+        (lo, hi)
+    }
+}
+
+/// A frame's predicted bound: per pixel and channel (R, G, B, A), the largest difference in
+/// 8-bit levels the widths allow between the fixed-point and the float pixel.
+#[derive(Clone, Debug)]
+pub struct BoundFrame {
+    pub width: u32,
+    pub height: u32,
+    pub levels: Vec<[u8; 4]>,
+}
+
+/// The error bound of one run's frames.
+pub struct ErrorBound<'a> {
+    volume: &'a Volume,
+    widths: Widths,
+    settings: RenderSettings,
+    /// The fixed model's entries as it composites them (widened to the accumulators).
+    fixed_entries: EntryRanges,
+    /// The float reference's table (the transfer function at integer densities, opacity not
+    /// yet corrected), one extra copy of the last entry, as it interpolates it.
+    float_table: Vec<[f64; 4]>,
+    float_entries: EntryRanges,
+    /// One accumulator unit (1 / (2^accumulator_bits − 1)): a fixed-point product's rounding
+    /// is at most half of it.
+    unit: f64,
+    /// The two models' ERT thresholds, lower and higher (fixed: rounded up to a unit).
+    thresholds: Option<(f64, f64)>,
+    /// The background per channel as each model composites it (lower, higher).
+    background: [(f64, f64); 4],
+}
+
+impl<'a> ErrorBound<'a> {
+    /// The bound for frames of `volume` with this transfer function, settings and hardware
+    /// (its widths); an error naming the reason when the configuration is outside it.
+    pub fn new(
+        volume: &'a Volume,
+        tf: &TransferFunction,
+        settings: &RenderSettings,
+        config: &HardwareConfig,
+    ) -> Result<Self> {
+        if let Some(reason) = unsupported(config, settings) {
+            return Err(Error::Invalid(reason));
+        }
+        let widths = Widths::from_config(config);
+        let entries = volume.max_value() as usize + 1;
+        // The fixed model's own table and compositor: the values it composites.
+        let table =
+            ClassificationTable::build(tf, entries, widths.lut_bits, settings.sample_spacing);
+        let compositor = Compositor::new(
+            widths.accumulator_bits,
+            widths.lut_bits,
+            settings.ert_threshold,
+            settings.background,
+        );
+        let unit = compositor.unit as f64;
+        let fixed: Vec<[f64; 4]> = (0..entries)
+            .map(|i| {
+                table
+                    .lookup(i as u16)
+                    .map(|x| compositor.widen(x) as f64 / unit)
+            })
+            .collect();
+        let mut float_table: Vec<[f64; 4]> = tf
+            .sample_table(entries)
+            .into_iter()
+            .map(|rgba| rgba.map(|x| x as f64))
+            .collect();
+        float_table.push(float_table[entries - 1]);
+        let thresholds = settings.ert_threshold.map(|t| {
+            let fixed = compositor.threshold() as f64 / unit;
+            let t = t as f64;
+            (t.min(fixed), t.max(fixed))
+        });
+        let fixed_background = compositor.background().map(|b| b as f64 / unit);
+        let background = std::array::from_fn(|c| {
+            let float = settings.background[c] as f64;
+            (
+                float.min(fixed_background[c]),
+                float.max(fixed_background[c]),
+            )
+        });
+        Ok(ErrorBound {
+            volume,
+            widths,
+            settings: settings.clone(),
+            fixed_entries: EntryRanges::new(fixed.clone(), fixed),
+            float_entries: EntryRanges::new(float_table.clone(), float_table.clone()),
+            float_table,
+            unit,
+            thresholds,
+            background,
+        })
+    }
+
+    /// The bound of every pixel of the camera's frame (rows in parallel; the same for any
+    /// thread count).
+    pub fn predict(&self, camera: &Camera) -> BoundFrame {
+        let (width, height) = (camera.width, camera.height);
+        let mut levels = vec![[0u8; 4]; (width * height) as usize];
+        levels
+            .par_chunks_mut(width as usize)
+            .enumerate()
+            .for_each(|(py, row)| {
+                for (px, level) in row.iter_mut().enumerate() {
+                    let (px, py) = (px as u32, py as u32);
+                    let ray = camera.voxel_ray(px, py, self.volume.spacing);
+                    *level = self.ray(&interleave_ray(ray, px, py, &self.settings));
+                }
+            });
+        BoundFrame {
+            width,
+            height,
+            levels,
+        }
+    }
+
+    /// The bound of one ray's pixel, per channel, in 8-bit levels.
+    pub fn ray(&self, ray: &Ray) -> [u8; 4] {
+        let dims = self.volume.dims;
+        let s = self.settings.sample_spacing as f64;
+        let w = &self.widths;
+        // A product's rounding in the fixed model, and the float's own per step.
+        let r = 0.5 / self.unit + FLOAT_STEP_SLACK;
+        let (mut a_lo, mut a_hi) = (0.0f64, 0.0f64);
+        let (mut c_lo, mut c_hi) = ([0.0f64; 3], [0.0f64; 3]);
+        if let Some((t_enter, t_exit)) = clip_to_box(ray, dims) {
+            let (first, end) = sample_range(t_enter, t_exit, self.settings.sample_spacing);
+            let origin = [ray.origin.x, ray.origin.y, ray.origin.z].map(|x| x as f64);
+            let dir = [ray.dir.x, ray.dir.y, ray.dir.z].map(|x| x as f64);
+            // The fixed start is the exact position rounded to half a position unit; each
+            // increment adds at most half an increment unit per axis.
+            let start_error = 0.5 / (1u64 << w.position_frac_bits) as f64 + 1e-9;
+            let step_error = 0.5 / (1u64 << w.increment_frac_bits) as f64;
+            // Truncating the position to the weights' bits moves the interpolated position
+            // towards the cell's lower corner by less than one weight unit.
+            let weight_error = if w.position_frac_bits > w.weight_bits {
+                1.0 / (1u64 << w.weight_bits) as f64
+            } else {
+                0.0
+            };
+            let max_value = self.volume.max_value() as f64;
+            let density_slack = max_value * 8.0 / (1u64 << 24) as f64 + 1e-9;
+            for k in first..end {
+                let t = k as f64 * s;
+                let exact: [f64; 3] = std::array::from_fn(|a| origin[a] + dir[a] * t);
+                let fixed_error = start_error + (k - first) as f64 * step_error;
+                // The float position: f32 products and sums of magnitudes up to |o| + |d·t|.
+                let float_error: [f64; 3] = std::array::from_fn(|a| {
+                    (origin[a].abs() + (dir[a] * t).abs() + 1.0) * 4.0 / (1u64 << 24) as f64
+                });
+                let mut lo = [0.0; 3];
+                let mut hi = [0.0; 3];
+                let mut certain = true;
+                for a in 0..3 {
+                    let top = (dims[a] - 1) as f64;
+                    // The fixed ray lacks a sample whose rounded position left the box.
+                    if exact[a] - fixed_error < 0.0 || exact[a] + fixed_error > top {
+                        certain = false;
+                    }
+                    let below = (fixed_error + weight_error).max(float_error[a]);
+                    let above = fixed_error.max(float_error[a]);
+                    lo[a] = (exact[a] - below).clamp(0.0, top);
+                    hi[a] = (exact[a] + above).clamp(0.0, top);
+                }
+                let (d_lo, d_hi) = self.density_range(lo, hi);
+                let (v_lo, v_hi) = self.classification_range(d_lo, d_hi, density_slack);
+                if v_hi[3] == 0.0 {
+                    // Transparent in both models: the fixed model composites nothing (no
+                    // rounding), the float adds zero.
+                    continue;
+                }
+                // ERT: once either model may have stopped, the lower bound takes nothing more;
+                // once both surely have, the ray is done.
+                let (maybe_stopped, both_stopped) = match self.thresholds {
+                    Some((low, high)) => (a_hi + 1e-9 >= low, a_lo - 1e-9 >= high),
+                    None => (false, false),
+                };
+                if both_stopped {
+                    break;
+                }
+                // Opacity and colour per step: A' = A + (1 − A)·a, C' = C + (1 − A)·a·c, each
+                // increasing in a, c and A's own term, C's decreasing in A.
+                let (new_a_hi, weight_hi) = (
+                    a_hi + ((1.0 - a_hi) * v_hi[3] + r),
+                    (1.0 - a_lo) * v_hi[3] + r,
+                );
+                for c in 0..3 {
+                    // A colour's increment is at most its weight (c <= 1) in either model.
+                    c_hi[c] = (c_hi[c] + (weight_hi * v_hi[c] + r).min(weight_hi)).min(1.0);
+                }
+                if certain && !maybe_stopped {
+                    let weight_lo = ((1.0 - a_hi) * v_lo[3] - r).max(0.0);
+                    for c in 0..3 {
+                        c_lo[c] += (weight_lo * v_lo[c] - r).max(0.0);
+                    }
+                    a_lo += ((1.0 - a_lo) * v_lo[3] - r).max(0.0);
+                }
+                a_hi = new_a_hi.min(1.0);
+            }
+        }
+        // The background behind: out = C + (1 − A)·bg, one more rounded product.
+        let out = |c: usize, lo: f64, hi: f64| -> (f64, f64) {
+            let (b_lo, b_hi) = self.background[c];
+            (
+                lo + ((1.0 - a_hi) * b_lo - r).max(0.0),
+                hi + (1.0 - a_lo) * b_hi + r,
+            )
+        };
+        let mut levels = [0u8; 4];
+        for (c, level) in levels.iter_mut().enumerate() {
+            let (lo, hi) = if c < 3 {
+                out(c, c_lo[c], c_hi[c])
+            } else {
+                // A + (1 − A)·bg is increasing in A.
+                let (b_lo, b_hi) = self.background[3];
+                (
+                    a_lo + ((1.0 - a_lo) * b_lo - r).max(0.0),
+                    a_hi + (1.0 - a_hi) * b_hi + r,
+                )
+            };
+            *level = self.levels_between(lo, hi);
+        }
+        levels
+    }
+
+    /// The lowest and highest colour and opacity either model classifies a density in
+    /// [d_lo, d_hi] to: the fixed model the entries its rounded density can index, the float
+    /// reference its table interpolated linearly over [d_lo − slack, d_hi + slack] (its own
+    /// interpolation's rounding), opacity corrected for the spacing after interpolation.
+    fn classification_range(&self, d_lo: f64, d_hi: f64, slack: f64) -> ([f64; 4], [f64; 4]) {
+        let max_value = self.volume.max_value() as f64;
+        // The fixed index rounds half up the exact interpolated density.
+        let index = |d: f64| (d + 0.5).floor().clamp(0.0, max_value) as usize;
+        let (mut lo, mut hi) = self
+            .fixed_entries
+            .range(index(d_lo - 1e-9), index(d_hi + 1e-9));
+        let (d_lo, d_hi) = (
+            (d_lo - slack).clamp(0.0, max_value),
+            (d_hi + slack).clamp(0.0, max_value),
+        );
+        let lerp = |d: f64| -> [f64; 4] {
+            let i = d.floor() as usize;
+            let f = d - i as f64;
+            let (a, b) = (self.float_table[i], self.float_table[i + 1]);
+            std::array::from_fn(|c| a[c] + (b[c] - a[c]) * f)
+        };
+        let mut float_lo = lerp(d_lo);
+        let mut float_hi = float_lo;
+        let mut take = |l: [f64; 4], h: [f64; 4]| {
+            for c in 0..4 {
+                float_lo[c] = float_lo[c].min(l[c]);
+                float_hi[c] = float_hi[c].max(h[c]);
+            }
+        };
+        let end = lerp(d_hi);
+        take(end, end);
+        // Between the ends the interpolated table is linear from one entry to the next: its
+        // extremes are the entries inside.
+        let (first_inside, last_inside) = (d_lo.floor() as usize + 1, d_hi.ceil() as usize);
+        if first_inside < last_inside {
+            let (l, h) = self.float_entries.range(first_inside, last_inside - 1);
+            take(l, h);
+        }
+        let spacing = self.settings.sample_spacing;
+        let corrected = |a: f64| {
+            if spacing == 1.0 {
+                a
+            } else {
+                correct_opacity(a as f32, spacing) as f64
+            }
+        };
+        float_lo[3] = corrected(float_lo[3]);
+        float_hi[3] = corrected(float_hi[3]);
+        // f32 rounding of the float's interpolation and correction.
+        let slack = 1e-6;
+        for c in 0..4 {
+            lo[c] = lo[c].min(float_lo[c] - slack).max(0.0);
+            hi[c] = hi[c].max(float_hi[c] + slack).min(1.0);
+        }
+        (lo, hi)
+    }
+
+    /// The most two 8-bit outputs can differ when both come from values in [lo, hi]: the fixed
+    /// model's floor(255·x + 1/2 − 1/(2U)) and the float's round(255·x), both monotone.
+    fn levels_between(&self, lo: f64, hi: f64) -> u8 {
+        let low = (255.0 * lo.clamp(0.0, 1.0) + 0.5 - 0.5 / self.unit - 1e-6).floor();
+        let high = (255.0 * hi.clamp(0.0, 1.0) + 0.5 + 1e-6).floor();
+        (high.min(255.0) - low.max(0.0)).max(0.0) as u8
+    }
+
+    /// The trilinear interpolant's lowest and highest value over the box lo..hi (voxel
+    /// coordinates inside the volume). Between lattice planes the interpolant is multilinear,
+    /// so its extremes over each piece of the box are at the piece's corners: evaluated at
+    /// every combination of the box's ends and the planes inside it. A box crossing more than
+    /// a few planes (very narrow widths) takes its voxels' range instead, also a bound.
+    fn density_range(&self, lo: [f64; 3], hi: [f64; 3]) -> (f64, f64) {
+        const MAX_POINTS: usize = 6;
+        let mut points: [[f64; MAX_POINTS]; 3] = [[0.0; MAX_POINTS]; 3];
+        let mut counts = [0usize; 3];
+        for a in 0..3 {
+            let mut n = 0;
+            points[a][n] = lo[a];
+            n += 1;
+            let mut plane = lo[a].floor() + 1.0;
+            while plane < hi[a] {
+                if n == MAX_POINTS - 1 {
+                    return self.voxel_range(lo, hi);
+                }
+                points[a][n] = plane;
+                n += 1;
+                plane += 1.0;
+            }
+            if hi[a] > lo[a] {
+                points[a][n] = hi[a];
+                n += 1;
+            }
+            counts[a] = n;
+        }
+        let (mut d_lo, mut d_hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for &z in &points[2][..counts[2]] {
+            for &y in &points[1][..counts[1]] {
+                for &x in &points[0][..counts[0]] {
+                    let d = self.interpolate([x, y, z]);
+                    d_lo = d_lo.min(d);
+                    d_hi = d_hi.max(d);
+                }
+            }
+        }
+        (d_lo, d_hi)
+    }
+
+    /// The exact trilinear interpolant at p (inside the box), in f64.
+    fn interpolate(&self, p: [f64; 3]) -> f64 {
+        let dims = self.volume.dims;
+        let base: [usize; 3] = std::array::from_fn(|a| (p[a].floor() as usize).min(dims[a] - 2));
+        let f: [f64; 3] = std::array::from_fn(|a| p[a] - base[a] as f64);
+        let at = |x: usize, y: usize, z: usize| {
+            self.volume.data[(base[0] + x) + dims[0] * ((base[1] + y) + dims[1] * (base[2] + z))]
+                as f64
+        };
+        let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
+        let y0 = lerp(
+            lerp(at(0, 0, 0), at(1, 0, 0), f[0]),
+            lerp(at(0, 1, 0), at(1, 1, 0), f[0]),
+            f[1],
+        );
+        let y1 = lerp(
+            lerp(at(0, 0, 1), at(1, 0, 1), f[0]),
+            lerp(at(0, 1, 1), at(1, 1, 1), f[0]),
+            f[1],
+        );
+        lerp(y0, y1, f[2])
+    }
+
+    /// The range of the voxels of every cell the box lo..hi touches.
+    fn voxel_range(&self, lo: [f64; 3], hi: [f64; 3]) -> (f64, f64) {
+        let dims = self.volume.dims;
+        let first: [usize; 3] = std::array::from_fn(|a| (lo[a].floor() as usize).min(dims[a] - 1));
+        let last: [usize; 3] = std::array::from_fn(|a| (hi[a].ceil() as usize).min(dims[a] - 1));
+        let (mut d_lo, mut d_hi) = (u16::MAX, 0u16);
+        for z in first[2]..=last[2] {
+            for y in first[1]..=last[1] {
+                let row = dims[0] * (y + dims[1] * z);
+                for &v in &self.volume.data[row + first[0]..=row + last[0]] {
+                    d_lo = d_lo.min(v);
+                    d_hi = d_hi.max(v);
+                }
+            }
+        }
+        (d_lo as f64, d_hi as f64)
+    }
+}
+
+/// One pixel over its bound: a broken invariant.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Violation {
+    pub pixel: (u32, u32),
+    /// 0..4: R, G, B, A.
+    pub channel: usize,
+    pub error: u8,
+    pub bound: u8,
+}
+
+/// The fixed-point image against the float image and the bound.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BoundCheck {
+    pub pixels: u64,
+    /// Pixel channels whose error exceeds their bound (0 when the invariant holds).
+    pub violations: u64,
+    /// The first violation in row order, if any.
+    pub first_violation: Option<Violation>,
+    /// The largest error and the largest bound over every pixel, per channel (R, G, B, A).
+    pub max_error: [u8; 4],
+    pub max_bound: [u8; 4],
+    /// Means over the pixels and the colour channels R, G, B, in 8-bit levels.
+    pub mean_error: f64,
+    pub mean_bound: f64,
+}
+
+impl BoundCheck {
+    pub fn holds(&self) -> bool {
+        self.violations == 0
+    }
+
+    /// One line: the measured error against the bound, and whether every pixel is within it.
+    pub fn describe(&self) -> String {
+        let verdict = match self.first_violation {
+            None => format!("every pixel within its bound ({} pixels)", self.pixels),
+            Some(v) => format!(
+                "{} pixel channels OVER their bound, the first at pixel ({}, {}) channel {}: \
+                 error {} > bound {}",
+                self.violations,
+                v.pixel.0,
+                v.pixel.1,
+                ["R", "G", "B", "A"][v.channel],
+                v.error,
+                v.bound
+            ),
+        };
+        format!(
+            "fixed vs float: max error (R, G, B) {} {} {}, mean {:.3}; predicted bound max {} {} \
+             {}, mean {:.3} levels; {verdict}",
+            self.max_error[0],
+            self.max_error[1],
+            self.max_error[2],
+            self.mean_error,
+            self.max_bound[0],
+            self.max_bound[1],
+            self.max_bound[2],
+            self.mean_bound
+        )
+    }
+}
+
+/// Checks every pixel of `fixed` against `float` and its bound.
+pub fn check(fixed: &Frame, float: &Frame, bound: &BoundFrame) -> Result<BoundCheck> {
+    if (fixed.width, fixed.height) != (float.width, float.height)
+        || (fixed.width, fixed.height) != (bound.width, bound.height)
+    {
+        return Err(Error::Invalid(format!(
+            "frames of different sizes: fixed {}x{}, float {}x{}, bound {}x{}",
+            fixed.width, fixed.height, float.width, float.height, bound.width, bound.height
+        )));
+    }
+    let mut result = BoundCheck {
+        pixels: fixed.pixels.len() as u64,
+        violations: 0,
+        first_violation: None,
+        max_error: [0; 4],
+        max_bound: [0; 4],
+        mean_error: 0.0,
+        mean_bound: 0.0,
+    };
+    let (mut error_sum, mut bound_sum) = (0u64, 0u64);
+    for (i, ((x, f), b)) in fixed
+        .pixels
+        .iter()
+        .zip(&float.pixels)
+        .zip(&bound.levels)
+        .enumerate()
+    {
+        for c in 0..4 {
+            let error = x[c].abs_diff(f[c]);
+            result.max_error[c] = result.max_error[c].max(error);
+            result.max_bound[c] = result.max_bound[c].max(b[c]);
+            if c < 3 {
+                error_sum += error as u64;
+                bound_sum += b[c] as u64;
+            }
+            if error > b[c] {
+                result.violations += 1;
+                result.first_violation.get_or_insert(Violation {
+                    pixel: (i as u32 % fixed.width, i as u32 / fixed.width),
+                    channel: c,
+                    error,
+                    bound: b[c],
+                });
+            }
+        }
+    }
+    let channels = (3 * fixed.pixels.len()).max(1) as f64;
+    result.mean_error = error_sum as f64 / channels;
+    result.mean_bound = bound_sum as f64 / channels;
+    Ok(result)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn noise_volume(dims: [usize; 3]) -> Volume {
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let data = (0..dims.iter().product::<usize>())
+            .map(|_| {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (state >> 56) as u16
+            })
+            .collect();
+        Volume {
+            name: "noise".into(),
+            dims,
+            spacing: [1.0; 3],
+            bits: 8,
+            data,
+        }
+    }
+
+    /// The interpolant's range over a box contains its value at every point of a fine grid in
+    /// the box, and is attained there (within the grid's resolution): boxes inside a cell, across
+    /// planes, at the faces, and wide enough for the voxel-range fallback.
+    #[test]
+    fn density_range_bounds_the_interpolant_over_the_box() {
+        let volume = noise_volume([6, 5, 7]);
+        let point = |value: f32, a: f32| crate::transfer::ControlPoint {
+            value,
+            rgba: [a, a, a, a],
+        };
+        let tf = TransferFunction::new(
+            "ramp".into(),
+            String::new(),
+            vec![point(0.0, 0.0), point(255.0, 1.0)],
+            "test",
+        )
+        .expect("valid");
+        let config = HardwareConfig::default_config();
+        let bound =
+            ErrorBound::new(&volume, &tf, &RenderSettings::default(), &config).expect("bound");
+        let boxes = [
+            ([1.2, 2.3, 3.1], [1.4, 2.35, 3.6]),
+            ([0.5, 1.9, 2.75], [2.0, 2.05, 4.25]),
+            ([0.0, 0.0, 0.0], [0.3, 4.0, 0.1]),
+            ([4.5, 3.5, 5.5], [5.0, 4.0, 6.0]),
+            ([0.0, 0.2, 0.0], [5.0, 4.0, 6.0]),
+        ];
+        for (lo, hi) in boxes {
+            let (d_lo, d_hi) = bound.density_range(lo, hi);
+            let n = 24;
+            let (mut seen_lo, mut seen_hi) = (f64::INFINITY, f64::NEG_INFINITY);
+            for i in 0..=n {
+                for j in 0..=n {
+                    for k in 0..=n {
+                        let t = [i, j, k].map(|x| x as f64 / n as f64);
+                        let p = std::array::from_fn(|a| lo[a] + (hi[a] - lo[a]) * t[a]);
+                        let d = bound.interpolate(p);
+                        assert!(
+                            d >= d_lo - 1e-9 && d <= d_hi + 1e-9,
+                            "{p:?}: {d} not in {d_lo}..{d_hi}"
+                        );
+                        seen_lo = seen_lo.min(d);
+                        seen_hi = seen_hi.max(d);
+                    }
+                }
+            }
+            let wide = (0..3).any(|a| hi[a] - lo[a] > 3.0);
+            if !wide {
+                // Exact: the extremes are at the box's corners and planes, which these boxes
+                // put on the fine grid.
+                assert!(
+                    (seen_lo - d_lo).abs() < 1e-9 && (seen_hi - d_hi).abs() < 1e-9,
+                    "{lo:?}..{hi:?}: {d_lo}..{d_hi} against {seen_lo}..{seen_hi}"
+                );
+            }
+        }
+    }
+
+    /// A range over many entries (blocks and ends) equals the element-wise fold.
+    #[test]
+    fn entry_ranges_equal_the_fold_over_the_entries() {
+        let values: Vec<[f64; 4]> = (0..300)
+            .map(|i| {
+                [
+                    (i * 37 % 101) as f64,
+                    (i * 13 % 7) as f64,
+                    i as f64,
+                    (300 - i) as f64,
+                ]
+            })
+            .collect();
+        let ranges = EntryRanges::new(values.clone(), values.clone());
+        for (first, last) in [
+            (0, 0),
+            (0, 63),
+            (1, 64),
+            (5, 299),
+            (64, 127),
+            (63, 200),
+            (299, 299),
+        ] {
+            let (lo, hi) = ranges.range(first, last);
+            for c in 0..4 {
+                let slice = values[first..=last].iter().map(|v| v[c]);
+                assert_eq!(lo[c], slice.clone().fold(f64::INFINITY, f64::min));
+                assert_eq!(hi[c], slice.fold(f64::NEG_INFINITY, f64::max));
+            }
+        }
+    }
+}
