@@ -21,10 +21,14 @@
 //!
 //! So the bound depends on the widths and on the frame (the data's gradients and the transfer
 //! function's slopes where the rays go); nothing of the fixed-point model's result enters it.
-//! It covers classified direct volume rendering with any leaping structure that keeps the image
-//! (occupancy maps, distance volumes, blocking, bricks), ERT, perspective and interleaved
-//! sampling; shading, the iso surface, lossy leap values, clipping and geometry are outside it
-//! (`unsupported`). docs/precision.md gives the figures.
+//! With shading, the colour interval is shaded by the gradients' range over the same box (the
+//! fixed model's quantised to half a unit), n·l over that range (any value where the gradient
+//! may vanish) and every rounding of the fixed model's Phong arithmetic.
+//!
+//! It covers classified direct volume rendering, shaded or not, with any leaping structure that
+//! keeps the image (occupancy maps, distance volumes, blocking, bricks), ERT, perspective and
+//! interleaved sampling; the iso surface, lossy leap values, clipping and geometry are outside
+//! it (`unsupported`). docs/precision.md gives the figures.
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -43,10 +47,8 @@ use crate::volume::Volume;
 const FLOAT_STEP_SLACK: f64 = 1.0 / (1u64 << 20) as f64;
 
 /// Why a run's fixed-point image has no predicted bound, if it has none.
-pub fn unsupported(config: &HardwareConfig, settings: &RenderSettings) -> Option<String> {
-    let reason = if settings.shading {
-        "shading (the gradient's and the lighting's rounding are not in the bound)"
-    } else if config.iso.enabled {
+pub fn unsupported(config: &HardwareConfig) -> Option<String> {
+    let reason = if config.iso.enabled {
         "the iso surface (a hit moves by a whole sample when the density crosses the iso value)"
     } else if config.occupancy.structure == LeapStructure::LeapValues {
         "leap values (homogeneous regions are lossy by design, and their two models follow \
@@ -147,6 +149,15 @@ pub struct ErrorBound<'a> {
     thresholds: Option<(f64, f64)>,
     /// The background per channel as each model composites it (lower, higher).
     background: [(f64, f64); 4],
+    /// With shading: the fixed model's gradient scale (quantised units per density unit) and
+    /// its table unit, in which it shades.
+    shading: Option<Shading>,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Shading {
+    gradient_scale: f64,
+    lut_unit: f64,
 }
 
 impl<'a> ErrorBound<'a> {
@@ -158,7 +169,7 @@ impl<'a> ErrorBound<'a> {
         settings: &RenderSettings,
         config: &HardwareConfig,
     ) -> Result<Self> {
-        if let Some(reason) = unsupported(config, settings) {
+        if let Some(reason) = unsupported(config) {
             return Err(Error::Invalid(reason));
         }
         let widths = Widths::from_config(config);
@@ -199,7 +210,16 @@ impl<'a> ErrorBound<'a> {
                 float.max(fixed_background[c]),
             )
         });
+        let shading = settings.shading.then(|| {
+            // As `GradientVolume::build` scales, in f32.
+            let max_component = ((1i32 << (config.shading.gradient_bits - 1)) - 1) as f32;
+            Shading {
+                gradient_scale: (max_component / (volume.max_value() as f32 * 0.5)) as f64,
+                lut_unit: ((1u32 << widths.lut_bits) - 1) as f64,
+            }
+        });
         Ok(ErrorBound {
+            shading,
             volume,
             widths,
             settings: settings.clone(),
@@ -283,11 +303,14 @@ impl<'a> ErrorBound<'a> {
                     hi[a] = (exact[a] + above).clamp(0.0, top);
                 }
                 let (d_lo, d_hi) = self.density_range(lo, hi);
-                let (v_lo, v_hi) = self.classification_range(d_lo, d_hi, density_slack);
+                let (mut v_lo, mut v_hi) = self.classification_range(d_lo, d_hi, density_slack);
                 if v_hi[3] == 0.0 {
                     // Transparent in both models: the fixed model composites nothing (no
                     // rounding), the float adds zero.
                     continue;
+                }
+                if let Some(shading) = &self.shading {
+                    (v_lo, v_hi) = self.shaded(shading, (lo, hi), dir, (v_lo, v_hi));
                 }
                 // ERT: once either model may have stopped, the lower bound takes nothing more;
                 // once both surely have, the ray is done.
@@ -400,6 +423,110 @@ impl<'a> ErrorBound<'a> {
         (lo, hi)
     }
 
+    /// The colour range `v` after Phong shading (`shading::phong_fixed`, `phong_float`) at any
+    /// position in the box: the gradient's range per component over the box (the float's
+    /// gradients, and the fixed model's quantised to half a unit), n·l over that range of
+    /// gradients (any direction when it comes near zero), and every rounding of the fixed
+    /// model's shading in table units (n·l floored, the constants rounded, each product and
+    /// squaring rounded, the light direction rounded to `LIGHT_FRAC_BITS`). Opacity unchanged.
+    fn shaded(
+        &self,
+        shading: &Shading,
+        (lo, hi): ([f64; 3], [f64; 3]),
+        dir: [f64; 3],
+        (v_lo, v_hi): ([f64; 4], [f64; 4]),
+    ) -> ([f64; 4], [f64; 4]) {
+        use crate::shading::{voxel_gradient, AMBIENT, DIFFUSE, LIGHT_FRAC_BITS, SPECULAR};
+        let scale = shading.gradient_scale;
+        // The gradient box in quantised units; f32 slack for the float's interpolation.
+        let mut g_lo = [0.0; 3];
+        let mut g_hi = [0.0; 3];
+        for c in 0..3 {
+            let (l, h) = self.field_range(lo, hi, |x, y, z| {
+                voxel_gradient(self.volume, x, y, z)[c] as f64
+            });
+            let slack = 0.5 + 1e-4 * (1.0 + h.abs().max(l.abs()) * scale);
+            g_lo[c] = l * scale - slack;
+            g_hi[c] = h * scale + slack;
+        }
+        let nearest = |c: usize| {
+            if g_lo[c] > 0.0 {
+                g_lo[c]
+            } else if g_hi[c] < 0.0 {
+                -g_hi[c]
+            } else {
+                0.0
+            }
+        };
+        let farthest = |c: usize| g_lo[c].abs().max(g_hi[c].abs());
+        let norm_min = (0..3).map(|c| nearest(c).powi(2)).sum::<f64>().sqrt();
+        let norm_max = (0..3).map(|c| farthest(c).powi(2)).sum::<f64>().sqrt();
+        // g·d over the box, widened by the fixed light direction's rounding.
+        let light_error = 0.5 / (1u64 << LIGHT_FRAC_BITS) as f64;
+        let widen: f64 = (0..3).map(|c| farthest(c) * light_error).sum::<f64>() + 1e-9;
+        let dot_lo: f64 = (0..3)
+            .map(|c| (g_lo[c] * dir[c]).min(g_hi[c] * dir[c]))
+            .sum::<f64>()
+            - widen;
+        let dot_hi: f64 = (0..3)
+            .map(|c| (g_lo[c] * dir[c]).max(g_hi[c] * dir[c]))
+            .sum::<f64>()
+            + widen;
+        let (abs_lo, abs_hi) = if dot_lo <= 0.0 && dot_hi >= 0.0 {
+            (0.0, dot_lo.abs().max(dot_hi.abs()))
+        } else {
+            (
+                dot_lo.abs().min(dot_hi.abs()),
+                dot_lo.abs().max(dot_hi.abs()),
+            )
+        };
+        let u = shading.lut_unit;
+        let r = 0.5 / u;
+        // The fixed norm is floored in units of 2^-3wb of a quantised unit; a zero norm (fixed)
+        // or a length under 1e-3 (float) shades with n·l = 1.
+        let norm_floor = 1.0 / (1u64 << (3 * self.widths.weight_bits)) as f64;
+        let zero_possible = norm_min <= (1e-3 * scale).max(norm_floor) * 2.0;
+        let nl_hi = if zero_possible {
+            1.0
+        } else {
+            (abs_hi / (norm_min - norm_floor)).min(1.0)
+        };
+        let nl_lo = if norm_max > 0.0 {
+            (abs_lo / norm_max - 1.0 / u - 1e-6).max(0.0)
+        } else {
+            0.0
+        };
+        let constant = |x: f32| {
+            let fixed = crate::functional::arith::to_unit(x, u as u32) as f64 / u;
+            (fixed.min(x as f64), fixed.max(x as f64))
+        };
+        let (ambient, diffuse, specular) =
+            (constant(AMBIENT), constant(DIFFUSE), constant(SPECULAR));
+        let factor = (
+            ambient.0 + diffuse.0 * nl_lo - r - 1e-6,
+            ambient.1 + diffuse.1 * nl_hi + r + 1e-6,
+        );
+        let (mut p_lo, mut p_hi) = (nl_lo, nl_hi);
+        for _ in 0..crate::shading::SHININESS_LOG2 {
+            p_lo = (p_lo * p_lo - r).max(0.0);
+            p_hi = (p_hi * p_hi + r).min(1.0);
+        }
+        let spec = (
+            (specular.0 * p_lo - r - 1e-6).max(0.0),
+            specular.1 * p_hi + r + 1e-6,
+        );
+        // The fixed model shades the table value (table units), then widens it to the
+        // accumulators: half an accumulator unit each way around the widened value.
+        let a = 0.5 / self.unit;
+        let mut out = (v_lo, v_hi);
+        for c in 0..3 {
+            let (c_lo, c_hi) = ((v_lo[c] - a).max(0.0), (v_hi[c] + a).min(1.0));
+            out.0[c] = ((c_lo * factor.0 - r + spec.0).min(1.0) - a).max(0.0);
+            out.1[c] = ((c_hi * factor.1 + r + spec.1).min(1.0) + a).min(1.0);
+        }
+        out
+    }
+
     /// The most two 8-bit outputs can differ when both come from values in [lo, hi]: the fixed
     /// model's floor(255·x + 1/2 − 1/(2U)) and the float's round(255·x), both monotone.
     fn levels_between(&self, lo: f64, hi: f64) -> u8 {
@@ -414,6 +541,21 @@ impl<'a> ErrorBound<'a> {
     /// every combination of the box's ends and the planes inside it. A box crossing more than
     /// a few planes (very narrow widths) takes its voxels' range instead, also a bound.
     fn density_range(&self, lo: [f64; 3], hi: [f64; 3]) -> (f64, f64) {
+        let data = &self.volume.data;
+        let dims = self.volume.dims;
+        self.field_range(lo, hi, |x, y, z| {
+            data[x + dims[0] * (y + dims[1] * z)] as f64
+        })
+    }
+
+    /// `density_range` of any per-voxel field (`value(x, y, z)`): the density, a gradient
+    /// component.
+    fn field_range<F: Fn(usize, usize, usize) -> f64>(
+        &self,
+        lo: [f64; 3],
+        hi: [f64; 3],
+        value: F,
+    ) -> (f64, f64) {
         const MAX_POINTS: usize = 6;
         let mut points: [[f64; MAX_POINTS]; 3] = [[0.0; MAX_POINTS]; 3];
         let mut counts = [0usize; 3];
@@ -424,7 +566,7 @@ impl<'a> ErrorBound<'a> {
             let mut plane = lo[a].floor() + 1.0;
             while plane < hi[a] {
                 if n == MAX_POINTS - 1 {
-                    return self.voxel_range(lo, hi);
+                    return self.voxel_range(lo, hi, value);
                 }
                 points[a][n] = plane;
                 n += 1;
@@ -440,7 +582,7 @@ impl<'a> ErrorBound<'a> {
         for &z in &points[2][..counts[2]] {
             for &y in &points[1][..counts[1]] {
                 for &x in &points[0][..counts[0]] {
-                    let d = self.interpolate([x, y, z]);
+                    let d = self.interpolate([x, y, z], &value);
                     d_lo = d_lo.min(d);
                     d_hi = d_hi.max(d);
                 }
@@ -449,15 +591,12 @@ impl<'a> ErrorBound<'a> {
         (d_lo, d_hi)
     }
 
-    /// The exact trilinear interpolant at p (inside the box), in f64.
-    fn interpolate(&self, p: [f64; 3]) -> f64 {
+    /// The exact trilinear interpolant of the field at p (inside the box), in f64.
+    fn interpolate<F: Fn(usize, usize, usize) -> f64>(&self, p: [f64; 3], value: &F) -> f64 {
         let dims = self.volume.dims;
         let base: [usize; 3] = std::array::from_fn(|a| (p[a].floor() as usize).min(dims[a] - 2));
         let f: [f64; 3] = std::array::from_fn(|a| p[a] - base[a] as f64);
-        let at = |x: usize, y: usize, z: usize| {
-            self.volume.data[(base[0] + x) + dims[0] * ((base[1] + y) + dims[1] * (base[2] + z))]
-                as f64
-        };
+        let at = |x: usize, y: usize, z: usize| value(base[0] + x, base[1] + y, base[2] + z);
         let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
         let y0 = lerp(
             lerp(at(0, 0, 0), at(1, 0, 0), f[0]),
@@ -472,22 +611,27 @@ impl<'a> ErrorBound<'a> {
         lerp(y0, y1, f[2])
     }
 
-    /// The range of the voxels of every cell the box lo..hi touches.
-    fn voxel_range(&self, lo: [f64; 3], hi: [f64; 3]) -> (f64, f64) {
+    /// The range of the field's voxels over every cell the box lo..hi touches.
+    fn voxel_range<F: Fn(usize, usize, usize) -> f64>(
+        &self,
+        lo: [f64; 3],
+        hi: [f64; 3],
+        value: F,
+    ) -> (f64, f64) {
         let dims = self.volume.dims;
         let first: [usize; 3] = std::array::from_fn(|a| (lo[a].floor() as usize).min(dims[a] - 1));
         let last: [usize; 3] = std::array::from_fn(|a| (hi[a].ceil() as usize).min(dims[a] - 1));
-        let (mut d_lo, mut d_hi) = (u16::MAX, 0u16);
+        let (mut d_lo, mut d_hi) = (f64::INFINITY, f64::NEG_INFINITY);
         for z in first[2]..=last[2] {
             for y in first[1]..=last[1] {
-                let row = dims[0] * (y + dims[1] * z);
-                for &v in &self.volume.data[row + first[0]..=row + last[0]] {
+                for x in first[0]..=last[0] {
+                    let v = value(x, y, z);
                     d_lo = d_lo.min(v);
                     d_hi = d_hi.max(v);
                 }
             }
         }
-        (d_lo as f64, d_hi as f64)
+        (d_lo, d_hi)
     }
 }
 
@@ -663,7 +807,7 @@ mod tests {
                     for k in 0..=n {
                         let t = [i, j, k].map(|x| x as f64 / n as f64);
                         let p = std::array::from_fn(|a| lo[a] + (hi[a] - lo[a]) * t[a]);
-                        let d = bound.interpolate(p);
+                        let d = bound.interpolate(p, &|x, y, z| volume.get(x, y, z) as f64);
                         assert!(
                             d >= d_lo - 1e-9 && d <= d_hi + 1e-9,
                             "{p:?}: {d} not in {d_lo}..{d_hi}"

@@ -108,7 +108,7 @@ pub fn sweep(base: &RunDescription, volume: &Volume) -> Result<PrecisionReport> 
     let mut plain_hardware = base.hardware.clone();
     plain_hardware.occupancy.subcube = 0;
     plain_hardware.occupancy.hierarchy = false;
-    let no_bound = crate::bound::unsupported(&base.hardware, &base.settings());
+    let no_bound = crate::bound::unsupported(&base.hardware);
     let mut image = Vec::new();
     for (field, range) in IMAGE_AXES {
         for bits in range.clone() {

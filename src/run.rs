@@ -1037,7 +1037,7 @@ pub fn check_error_bound(
     fixed: Option<&Frame>,
 ) -> Result<crate::bound::BoundCheck> {
     let settings = run.settings();
-    if let Some(reason) = crate::bound::unsupported(&run.hardware, &settings) {
+    if let Some(reason) = crate::bound::unsupported(&run.hardware) {
         return Err(Error::Invalid(reason));
     }
     let frame_of = |model: Model| -> Result<Frame> {

@@ -492,7 +492,7 @@ pub fn leaping_text(leaping: &vizsim::functional::renderer::Leaping) -> String {
 /// `--check-bound` (render, sim): refused before anything runs when the run is outside the
 /// predicted bound.
 pub fn refuse_unbounded(desc: &vizsim::run::RunDescription) -> Result<()> {
-    if let Some(reason) = vizsim::bound::unsupported(&desc.hardware, &desc.settings()) {
+    if let Some(reason) = vizsim::bound::unsupported(&desc.hardware) {
         anyhow::bail!("--check-bound: {reason} (docs/precision.md, \"The predicted bound\")");
     }
     Ok(())
