@@ -26,17 +26,18 @@
 //! may vanish) and every rounding of the fixed model's Phong arithmetic.
 //!
 //! It covers classified direct volume rendering, shaded or not, with any leaping structure that
-//! keeps the image (occupancy maps, distance volumes, blocking, bricks), ERT, perspective and
-//! interleaved sampling; the iso surface, lossy leap values, clipping and geometry are outside
-//! it (`unsupported`). docs/precision.md gives the figures.
+//! keeps the image (occupancy maps, distance volumes, blocking, bricks), ERT, perspective,
+//! interleaved sampling, leap values over empty regions, clipping and opaque geometry (which
+//! cut the same sample indices in both models); the iso surface and homogeneous leap values are
+//! outside it (`unsupported`). docs/precision.md gives the figures.
 
 use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::camera::{interleave_ray, Camera, Ray};
-use crate::config::{HardwareConfig, LeapStructure};
+use crate::config::{HardwareConfig, LeapRegions, LeapStructure};
 use crate::error::{Error, Result};
-use crate::functional::arith::{ClassificationTable, Compositor};
+use crate::functional::arith::{to_accumulator, ClassificationTable, Compositor};
 use crate::functional::Widths;
 use crate::render::{clip_to_box, sample_range, Frame, RenderSettings};
 use crate::transfer::{correct_opacity, TransferFunction};
@@ -50,14 +51,11 @@ const FLOAT_STEP_SLACK: f64 = 1.0 / (1u64 << 20) as f64;
 pub fn unsupported(config: &HardwareConfig) -> Option<String> {
     let reason = if config.iso.enabled {
         "the iso surface (a hit moves by a whole sample when the density crosses the iso value)"
-    } else if config.occupancy.structure == LeapStructure::LeapValues {
-        "leap values (homogeneous regions are lossy by design, and their two models follow \
-         their own protocol)"
-    } else if !config.clip.is_off() {
-        "clipping (the two models cut a ray at rounded positions; the bound does not yet take \
-         the samples near a clip plane as uncertain)"
-    } else if !config.geometry.is_off() {
-        "geometry (the two models end a ray at rounded positions)"
+    } else if config.occupancy.structure == LeapStructure::LeapValues
+        && config.leap_values.regions == LeapRegions::Homogeneous
+    {
+        "homogeneous leap values (lossy by design: both models composite a region's mean \
+         under their own protocol)"
     } else {
         return None;
     };
@@ -149,6 +147,8 @@ pub struct ErrorBound<'a> {
     thresholds: Option<(f64, f64)>,
     /// The background per channel as each model composites it (lower, higher).
     background: [(f64, f64); 4],
+    /// Clip planes, clip box and opaque geometry, when set.
+    scene: Option<crate::clip::Scene>,
     /// With shading: the fixed model's gradient scale (quantised units per density unit) and
     /// its table unit, in which it shades.
     shading: Option<Shading>,
@@ -219,6 +219,7 @@ impl<'a> ErrorBound<'a> {
             }
         });
         Ok(ErrorBound {
+            scene: crate::clip::Scene::from_config(config)?,
             shading,
             volume,
             widths,
@@ -244,7 +245,7 @@ impl<'a> ErrorBound<'a> {
                 for (px, level) in row.iter_mut().enumerate() {
                     let (px, py) = (px as u32, py as u32);
                     let ray = camera.voxel_ray(px, py, self.volume.spacing);
-                    *level = self.ray(&interleave_ray(ray, px, py, &self.settings));
+                    *level = self.ray(&interleave_ray(ray, px, py, &self.settings), (px, py));
                 }
             });
         BoundFrame {
@@ -255,7 +256,7 @@ impl<'a> ErrorBound<'a> {
     }
 
     /// The bound of one ray's pixel, per channel, in 8-bit levels.
-    pub fn ray(&self, ray: &Ray) -> [u8; 4] {
+    pub fn ray(&self, ray: &Ray, (px, py): (u32, u32)) -> [u8; 4] {
         let dims = self.volume.dims;
         let s = self.settings.sample_spacing as f64;
         let w = &self.widths;
@@ -263,8 +264,27 @@ impl<'a> ErrorBound<'a> {
         let r = 0.5 / self.unit + FLOAT_STEP_SLACK;
         let (mut a_lo, mut a_hi) = (0.0f64, 0.0f64);
         let (mut c_lo, mut c_hi) = ([0.0f64; 3], [0.0f64; 3]);
+        // Clipping and geometry cut the same sample indices k in both models (`clip`), and an
+        // opaque surface replaces the background, each model's colour rounded its own way.
+        let limits = self
+            .scene
+            .as_ref()
+            .map(|scene| scene.limits(ray, px, py, self.settings.sample_spacing));
+        let mut background = self.background;
+        if let Some(surface) = limits.and_then(|l| l.surface) {
+            background = std::array::from_fn(|c| {
+                let float = surface[c] as f64;
+                let fixed = to_accumulator(surface[c], self.unit as u32) as f64 / self.unit;
+                (float.min(fixed), float.max(fixed))
+            });
+        }
         if let Some((t_enter, t_exit)) = clip_to_box(ray, dims) {
             let (first, end) = sample_range(t_enter, t_exit, self.settings.sample_spacing);
+            // Drift counts from the box entry, where the fixed start was rounded.
+            let (kept_first, kept_end) = match limits {
+                Some(l) => (first.max(l.k_lo), end.min(l.k_end)),
+                None => (first, end),
+            };
             let origin = [ray.origin.x, ray.origin.y, ray.origin.z].map(|x| x as f64);
             let dir = [ray.dir.x, ray.dir.y, ray.dir.z].map(|x| x as f64);
             // The fixed start is the exact position rounded to half a position unit; each
@@ -280,7 +300,7 @@ impl<'a> ErrorBound<'a> {
             };
             let max_value = self.volume.max_value() as f64;
             let density_slack = max_value * 8.0 / (1u64 << 24) as f64 + 1e-9;
-            for k in first..end {
+            for k in kept_first..kept_end {
                 let t = k as f64 * s;
                 let exact: [f64; 3] = std::array::from_fn(|a| origin[a] + dir[a] * t);
                 let fixed_error = start_error + (k - first) as f64 * step_error;
@@ -343,7 +363,7 @@ impl<'a> ErrorBound<'a> {
         }
         // The background behind: out = C + (1 − A)·bg, one more rounded product.
         let out = |c: usize, lo: f64, hi: f64| -> (f64, f64) {
-            let (b_lo, b_hi) = self.background[c];
+            let (b_lo, b_hi) = background[c];
             (
                 lo + ((1.0 - a_hi) * b_lo - r).max(0.0),
                 hi + (1.0 - a_lo) * b_hi + r,
@@ -355,7 +375,7 @@ impl<'a> ErrorBound<'a> {
                 out(c, c_lo[c], c_hi[c])
             } else {
                 // A + (1 − A)·bg is increasing in A.
-                let (b_lo, b_hi) = self.background[3];
+                let (b_lo, b_hi) = background[3];
                 (
                     a_lo + ((1.0 - a_lo) * b_lo - r).max(0.0),
                     a_hi + (1.0 - a_hi) * b_hi + r,

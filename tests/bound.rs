@@ -62,13 +62,14 @@ fn the_fixed_image_is_within_its_bound_over_phantoms_views_and_widths() {
 }
 
 /// The modes the bound covers besides the widths: sample spacing (opacity correction),
-/// interleaved sampling, a coloured background, ERT thresholds, leaping structures and bricks
-/// (which keep the image), and the cycle model's frame (equal to the fixed-point one).
+/// interleaved sampling, ERT thresholds, leaping structures, bricks and blocking (which keep
+/// the image), clipping and opaque geometry (whose surface colour each model rounds its own
+/// way), and the cycle model's frame (equal to the fixed-point one).
 #[test]
 fn the_bound_holds_across_the_modes_it_covers() {
     let name = "phantom:metaballs:32";
     let volume = phantom(name);
-    let cases: [(&str, &[&str]); 8] = [
+    let cases: [(&str, &[&str]); 12] = [
         ("spacing 0.5", &[]),
         ("spacing 2", &[]),
         ("interleave 2", &["ray.interleave=2"]),
@@ -79,9 +80,27 @@ fn the_bound_holds_across_the_modes_it_covers() {
         ),
         ("distance volume", &["occupancy.structure=\"distance\""]),
         ("bricks 8", &["bricks.size=8"]),
+        ("leap values", &["occupancy.structure=\"leap-values\""]),
         (
             "blocking",
             &["blocking.enabled=true", "blocking.block_size=8"],
+        ),
+        (
+            "clip box",
+            &["clip.box=[[3.0, 2.0, 4.0], [25.0, 20.0, 28.0]]"],
+        ),
+        (
+            "clip plane",
+            &["clip.planes=[{point=[16.0, 16.0, 16.0], normal=[1.0, 0.4, -0.2]}]"],
+        ),
+        (
+            "geometry",
+            &[
+                "geometry.shape=\"sphere\"",
+                "geometry.centre=[16.0, 16.0, 16.0]",
+                "geometry.radius=7.0",
+                "geometry.colour=[0.9, 0.3, 0.1]",
+            ],
         ),
     ];
     for (case, sets) in cases {
@@ -222,14 +241,12 @@ fn configurations_outside_the_bound_are_refused_by_name() {
     for (sets, shading, named) in [
         (&["iso.enabled=true"][..], true, "iso surface"),
         (
-            &["occupancy.structure=\"leap-values\""][..],
+            &[
+                "occupancy.structure=\"leap-values\"",
+                "leap_values.regions=\"homogeneous\"",
+            ][..],
             false,
-            "leap values",
-        ),
-        (
-            &["clip.box=[[2.0, 2.0, 2.0], [20.0, 20.0, 20.0]]"][..],
-            false,
-            "clipping",
+            "homogeneous leap values",
         ),
     ] {
         let mut run = run_of("phantom:sphere:32", "front", false, 16, sets);
