@@ -413,6 +413,7 @@ pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<
         Model::Step | Model::Cycle => {
             let sdram = run.model == Model::Cycle && run.memory == Memory::Sdram;
             if sdram {
+                check_gradient_word(run, volume)?;
                 let distance = matches!(run.leaping(), Leaping::Distance { .. });
                 if let Err(e) = check_volume_memory(&run.hardware, volume.dims, distance) {
                     return Err(with_blocking_hint(e, run, volume, &tf, &settings));
@@ -450,6 +451,36 @@ pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<
         transfer_function: tf.name,
         renderer,
     })
+}
+
+/// With shading (or the iso surface, which shades its hit), each voxel word holds the density
+/// and the three stored gradient components, as VIZARD II's 32-bit word holds 8 + 3 × 8 bits.
+/// The SDRAM model reads one word per voxel, so a voxel that does not fit its word is refused
+/// rather than timed as if it did. (With leap values `validate` checks the word with their
+/// fields too.)
+fn check_gradient_word(run: &RunDescription, volume: &Volume) -> Result<()> {
+    let hardware = &run.hardware;
+    if !(run.shading || hardware.iso.enabled) {
+        return Ok(());
+    }
+    let word = hardware.volume_word.word_bits;
+    let gradient = hardware.shading.gradient_bits;
+    let needed = volume.bits as u32 + 3 * gradient;
+    if needed > word {
+        let fits = word.saturating_sub(volume.bits as u32) / 3;
+        return Err(Error::config(
+            "hardware configuration",
+            "shading.gradient_bits",
+            format!(
+                "a shaded {}-bit volume needs {needed} bits per voxel word ({} density + 3 × \
+                 {gradient} gradient), the word has {word} (volume_word.word_bits); the cycle \
+                 model reads one word per voxel, so narrow the gradient to at most {fits} bits \
+                 (--set shading.gradient_bits={fits}), or simulate without shading",
+                volume.bits, volume.bits
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// The SDRAM check the cycle model makes before a run: the volume, and with `distance` its

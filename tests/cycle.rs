@@ -416,3 +416,36 @@ fn slowest_legal_sdram_timings_never_trip_the_smallest_watchdog() {
         assert_eq!(tight, patient, "watchdog {watchdog}");
     }
 }
+
+/// With shading, a voxel word holds the density and three gradient components (VIZARD II: 8 +
+/// 3 × 8 of 32 bits). The SDRAM model reads one word per voxel, so a wider voxel is refused,
+/// naming the field and the width that fits; the ideal memory (no words) and a fitting width run.
+#[test]
+fn a_shaded_voxel_wider_than_its_word_is_refused_by_the_sdram_model() {
+    use vizsim::run::{prepare, Memory, Model, RunDescription};
+    let volume = vizsim::volume::dataset::load("phantom:sphere:16", None).unwrap();
+    let run_with = |gradient_bits: u32, memory: Memory| {
+        let config = vizsim::config::HardwareConfig::load(
+            None,
+            &[format!("shading.gradient_bits={gradient_bits}")],
+        )
+        .unwrap();
+        let mut run = RunDescription::new("phantom:sphere:16", "class", Model::Cycle, config);
+        run.shading = true;
+        run.memory = memory;
+        run.size = (8, 8);
+        run
+    };
+    let error = prepare(&run_with(9, Memory::Sdram), &volume)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        error.contains("shading.gradient_bits")
+            && error.contains("35 bits")
+            && error.contains("=8"),
+        "{error}"
+    );
+    assert!(prepare(&run_with(8, Memory::Sdram), &volume).is_ok());
+    assert!(prepare(&run_with(9, Memory::Ideal { latency: 6 }), &volume).is_ok());
+}
