@@ -299,7 +299,9 @@ impl<'a> ErrorBound<'a> {
                 0.0
             };
             let max_value = self.volume.max_value() as f64;
-            let density_slack = max_value * 8.0 / (1u64 << 24) as f64 + 1e-9;
+            // The float's three nested f32 lerps round by up to 8 half-ulps of the largest value;
+            // twice that leaves room for the table lerp's own rounding.
+            let density_slack = max_value * 16.0 / (1u64 << 24) as f64 + 1e-9;
             for k in kept_first..kept_end {
                 let t = k as f64 * s;
                 let exact: [f64; 3] = std::array::from_fn(|a| origin[a] + dir[a] * t);
@@ -425,20 +427,28 @@ impl<'a> ErrorBound<'a> {
             take(l, h);
         }
         let spacing = self.settings.sample_spacing;
-        let corrected = |a: f64| {
-            if spacing == 1.0 {
-                a
-            } else {
-                correct_opacity(a as f32, spacing) as f64
-            }
-        };
-        float_lo[3] = corrected(float_lo[3]);
-        float_hi[3] = corrected(float_hi[3]);
-        // f32 rounding of the float's interpolation and correction.
+        // f32 rounding of the float's interpolation (before the correction, whose slope has no
+        // bound near opacity 1 when the spacing is below 1) and of the correction itself. A
+        // value that is exactly 0 (every entry in reach transparent) stays 0 in f32: such a
+        // sample composites nothing in either model.
         let slack = 1e-6;
+        let widen = |lo: f64, hi: f64| {
+            (
+                (lo - slack).max(0.0),
+                if hi > 0.0 { (hi + slack).min(1.0) } else { 0.0 },
+            )
+        };
+        if spacing != 1.0 {
+            // The float reference's own correction (f32) of the widened ends; the loop below
+            // widens its result for the correction's rounding.
+            let (a_lo, a_hi) = widen(float_lo[3], float_hi[3]);
+            float_lo[3] = correct_opacity(a_lo as f32, spacing) as f64;
+            float_hi[3] = correct_opacity(a_hi as f32, spacing) as f64;
+        }
         for c in 0..4 {
-            lo[c] = lo[c].min(float_lo[c] - slack).max(0.0);
-            hi[c] = hi[c].max(float_hi[c] + slack).min(1.0);
+            let (f_lo, f_hi) = widen(float_lo[c], float_hi[c]);
+            lo[c] = lo[c].min(f_lo);
+            hi[c] = hi[c].max(f_hi);
         }
         (lo, hi)
     }
