@@ -273,6 +273,9 @@ impl FloatRange {
         let bricks = if config.bricks.is_off() {
             None
         } else {
+            if config.occupancy.kind == OccupancyKind::Zero && table[0].w > 0.0 {
+                return Err(crate::functional::renderer::zero_kind_refused());
+            }
             let mut prefix = Vec::with_capacity(table.len() + 1);
             prefix.push(0u32);
             for e in table {

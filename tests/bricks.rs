@@ -748,3 +748,42 @@ fn a_cylinder_pointer_ends_rays_and_shows_in_all_three_models() {
     .to_string();
     assert!(e.contains("geometry.end"), "{e}");
 }
+
+/// The '0' kind skips all-zero bricks. A transfer function that gives density 0 an opacity
+/// too small for the fixed-point table (0.001 rounds to 0 at 8 bits) still shows in the float
+/// reference, whose bricks would then change its image: every model refuses it alike.
+#[test]
+fn zero_kind_bricks_are_refused_when_density_zero_has_any_opacity() {
+    let volume = common::ball(16);
+    let tf = common::tf(&[
+        (0.0, [0.5, 0.5, 0.5, 0.001]),
+        (40.0, [0.5, 0.5, 0.5, 0.001]),
+        (200.0, [1.0, 0.8, 0.2, 0.6]),
+    ]);
+    let config = HardwareConfig::load(
+        None,
+        &[
+            "bricks.size=4".to_string(),
+            "occupancy.kind=\"zero\"".to_string(),
+        ],
+    )
+    .unwrap();
+    let settings = vizsim::render::RenderSettings::default();
+    let fixed = vizsim::functional::renderer::FixedRenderer::new(
+        &volume,
+        &tf,
+        &settings,
+        &config,
+        vizsim::functional::renderer::Leaping::None,
+    );
+    let float = vizsim::render::float::FloatRenderer::new(&volume, &tf, &settings)
+        .unwrap()
+        .with_ray_range(&config);
+    for (model, error) in [
+        ("fixed", fixed.err().map(|e| e.to_string())),
+        ("float", float.err().map(|e| e.to_string())),
+    ] {
+        let error = error.unwrap_or_else(|| panic!("{model}: accepted"));
+        assert!(error.contains("occupancy.kind"), "{model}: {error}");
+    }
+}

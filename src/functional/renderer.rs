@@ -117,17 +117,24 @@ pub struct FixedRenderer<'a> {
 /// invariant that they never do; refused, naming the kind that follows the table.
 pub fn check_zero_is_invisible(table: &ClassificationTable) -> Result<()> {
     if table.any_visible(0, 0) {
-        return Err(crate::error::Error::config(
-            "hardware configuration",
-            "occupancy.kind",
-            "'0' (zero) skips voxels of density 0 as empty, but the transfer function gives \
-             density 0 some opacity, so skipping them would change the image; use \
-             occupancy.kind = \"class\" (--occupancy class), whose test follows the transfer \
-             function"
-                .to_string(),
-        ));
+        return Err(zero_kind_refused());
     }
     Ok(())
+}
+
+/// The refusal of the '0' kind where density 0 has some opacity: in the fixed-point table, or
+/// in the transfer function itself (an opacity that rounds to 0 in the table still shows in the
+/// float reference, whose bricks would then change its image).
+pub fn zero_kind_refused() -> crate::error::Error {
+    crate::error::Error::config(
+        "hardware configuration",
+        "occupancy.kind",
+        "'0' (zero) skips voxels of density 0 as empty, but the transfer function gives \
+         density 0 some opacity, so skipping them would change the image; use \
+         occupancy.kind = \"class\" (--occupancy class), whose test follows the transfer \
+         function"
+            .to_string(),
+    )
 }
 
 impl<'a> FixedRenderer<'a> {
@@ -170,6 +177,10 @@ impl<'a> FixedRenderer<'a> {
             && config.occupancy.kind == OccupancyKind::Zero);
         if zero_kind_in_use {
             check_zero_is_invisible(&table)?;
+            // Refused alike when only the table rounds it away: the float reference sees it.
+            if iso.is_none() && tf.eval(0.0)[3] > 0.0 {
+                return Err(zero_kind_refused());
+            }
         }
         let iso_rgba = iso.map_or([0; 4], |iso| iso_entry(iso.colour, widths.lut_bits));
         let iso_threshold = iso.map_or(0, |iso| iso_threshold(iso.value, widths.weight_bits));
