@@ -28,8 +28,9 @@
 //! It covers classified direct volume rendering, shaded or not, with any leaping structure that
 //! keeps the image (occupancy maps, distance volumes, blocking, bricks), ERT, perspective,
 //! interleaved sampling, leap values over empty regions, clipping and opaque geometry (which
-//! cut the same sample indices in both models); the iso surface and homogeneous leap values are
-//! outside it (`unsupported`). docs/precision.md gives the figures.
+//! cut the same sample indices in both models) and the iso surface (`iso_ray`); homogeneous
+//! leap values, lossy by design, are outside it (`unsupported`). docs/precision.md gives the
+//! figures.
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -49,9 +50,7 @@ const FLOAT_STEP_SLACK: f64 = 1.0 / (1u64 << 20) as f64;
 
 /// Why a run's fixed-point image has no predicted bound, if it has none.
 pub fn unsupported(config: &HardwareConfig) -> Option<String> {
-    let reason = if config.iso.enabled {
-        "the iso surface (a hit moves by a whole sample when the density crosses the iso value)"
-    } else if config.occupancy.structure == LeapStructure::LeapValues
+    let reason = if config.occupancy.structure == LeapStructure::LeapValues
         && config.leap_values.regions == LeapRegions::Homogeneous
     {
         "homogeneous leap values (lossy by design: both models composite a region's mean \
@@ -149,6 +148,8 @@ pub struct ErrorBound<'a> {
     background: [(f64, f64); 4],
     /// Clip planes, clip box and opaque geometry, when set.
     scene: Option<crate::clip::Scene>,
+    /// Iso-surface mode: the surface and its colour as each model holds it (lower, higher).
+    iso: Option<(crate::iso::IsoSurface, [(f64, f64); 3])>,
     /// With shading: the fixed model's gradient scale (quantised units per density unit) and
     /// its table unit, in which it shades.
     shading: Option<Shading>,
@@ -210,7 +211,17 @@ impl<'a> ErrorBound<'a> {
                 float.max(fixed_background[c]),
             )
         });
-        let shading = settings.shading.then(|| {
+        let iso = crate::iso::IsoSurface::from_config(config, volume)?.map(|iso| {
+            let fixed = crate::functional::arith::iso_entry(iso.colour, widths.lut_bits);
+            let lut_unit = ((1u32 << widths.lut_bits) - 1) as f64;
+            let colour = std::array::from_fn(|c| {
+                let (float, fixed) = (iso.colour[c] as f64, fixed[c] as f64 / lut_unit);
+                (float.min(fixed), float.max(fixed))
+            });
+            (iso, colour)
+        });
+        // The iso surface is always shaded.
+        let shading = (settings.shading || iso.is_some()).then(|| {
             // As `GradientVolume::build` scales, in f32.
             let max_component = ((1i32 << (config.shading.gradient_bits - 1)) - 1) as f32;
             Shading {
@@ -219,6 +230,7 @@ impl<'a> ErrorBound<'a> {
             }
         });
         Ok(ErrorBound {
+            iso,
             scene: crate::clip::Scene::from_config(config)?,
             shading,
             volume,
@@ -302,10 +314,12 @@ impl<'a> ErrorBound<'a> {
             // The float's three nested f32 lerps round by up to 8 half-ulps of the largest value;
             // twice that leaves room for the table lerp's own rounding.
             let density_slack = max_value * 16.0 / (1u64 << 24) as f64 + 1e-9;
-            for k in kept_first..kept_end {
+            // Every position either model can sample (or interpolate at) for sample k, and
+            // whether the fixed ray surely has that sample.
+            let sample_box = |k: i64| {
                 let t = k as f64 * s;
                 let exact: [f64; 3] = std::array::from_fn(|a| origin[a] + dir[a] * t);
-                let fixed_error = start_error + (k - first) as f64 * step_error;
+                let fixed_error = start_error + (k - first).max(0) as f64 * step_error;
                 // The float position: f32 products and sums of magnitudes up to |o| + |d·t|.
                 let float_error: [f64; 3] = std::array::from_fn(|a| {
                     (origin[a].abs() + (dir[a] * t).abs() + 1.0) * 4.0 / (1u64 << 24) as f64
@@ -324,6 +338,20 @@ impl<'a> ErrorBound<'a> {
                     lo[a] = (exact[a] - below).clamp(0.0, top);
                     hi[a] = (exact[a] + above).clamp(0.0, top);
                 }
+                (lo, hi, certain)
+            };
+            if let Some((iso, colour)) = &self.iso {
+                return self.iso_ray(
+                    iso,
+                    colour,
+                    (kept_first, kept_end),
+                    sample_box,
+                    dir,
+                    background,
+                );
+            }
+            for k in kept_first..kept_end {
+                let (lo, hi, certain) = sample_box(k);
                 let (d_lo, d_hi) = self.density_range(lo, hi);
                 let (mut v_lo, mut v_hi) = self.classification_range(d_lo, d_hi, density_slack);
                 if v_hi[3] == 0.0 {
@@ -386,6 +414,58 @@ impl<'a> ErrorBound<'a> {
             *level = self.levels_between(lo, hi);
         }
         levels
+    }
+
+    /// Iso mode: the pixel is the shaded surface colour (opaque) of the first sample at or above
+    /// the iso value, refined between it and the sample before, or the background when none
+    /// is. Each sample whose density range reaches the iso value may be the hit, until one
+    /// surely is (in both models: its whole range at or above the value, and surely on the
+    /// fixed ray); the pixel's range is the union of those outcomes' ranges, the surface's
+    /// shaded over the positions between the two samples (any refinement lands there in both
+    /// models: the fixed midpoints floor, the float bisects t).
+    fn iso_ray(
+        &self,
+        iso: &crate::iso::IsoSurface,
+        colour: &[(f64, f64); 3],
+        (kept_first, kept_end): (i64, i64),
+        sample_box: impl Fn(i64) -> ([f64; 3], [f64; 3], bool),
+        dir: [f64; 3],
+        background: [(f64, f64); 4],
+    ) -> [u8; 4] {
+        let shading = self.shading.as_ref().expect("the iso surface is shaded");
+        let slack = self.volume.max_value() as f64 * 16.0 / (1u64 << 24) as f64 + 1e-9;
+        let (mut lo, mut hi) = ([f64::INFINITY; 4], [f64::NEG_INFINITY; 4]);
+        let mut take = |l: [f64; 4], h: [f64; 4]| {
+            for c in 0..4 {
+                lo[c] = lo[c].min(l[c]);
+                hi[c] = hi[c].max(h[c]);
+            }
+        };
+        let mut surely_hit = false;
+        for k in kept_first..kept_end {
+            let (box_lo, box_hi, certain) = sample_box(k);
+            let (d_lo, d_hi) = self.density_range(box_lo, box_hi);
+            if d_hi + slack < iso.value {
+                continue;
+            }
+            let (before_lo, before_hi, _) = sample_box(k - 1);
+            let hull_lo = std::array::from_fn(|a| box_lo[a].min(before_lo[a]));
+            let hull_hi = std::array::from_fn(|a| box_hi[a].max(before_hi[a]));
+            let v_lo = [colour[0].0, colour[1].0, colour[2].0, 1.0];
+            let v_hi = [colour[0].1, colour[1].1, colour[2].1, 1.0];
+            let (s_lo, s_hi) = self.shaded(shading, (hull_lo, hull_hi), dir, (v_lo, v_hi));
+            take(s_lo, s_hi);
+            if certain && d_lo - slack >= iso.value {
+                surely_hit = true;
+                break;
+            }
+        }
+        if !surely_hit {
+            take(background.map(|b| b.0), background.map(|b| b.1));
+        }
+        // The fixed model's finish rounds once more (a product with the background's share).
+        let r = 0.5 / self.unit + FLOAT_STEP_SLACK;
+        std::array::from_fn(|c| self.levels_between(lo[c] - r, hi[c] + r))
     }
 
     /// The lowest and highest colour and opacity either model classifies a density in

@@ -63,13 +63,13 @@ fn the_fixed_image_is_within_its_bound_over_phantoms_views_and_widths() {
 
 /// The modes the bound covers besides the widths: sample spacing (opacity correction),
 /// interleaved sampling, ERT thresholds, leaping structures, bricks and blocking (which keep
-/// the image), clipping and opaque geometry (whose surface colour each model rounds its own
+/// the image), the iso surface (refined or not), clipping and opaque geometry (whose surface colour each model rounds its own
 /// way), and the cycle model's frame (equal to the fixed-point one).
 #[test]
 fn the_bound_holds_across_the_modes_it_covers() {
     let name = "phantom:metaballs:32";
     let volume = phantom(name);
-    let cases: [(&str, &[&str]); 12] = [
+    let cases: [(&str, &[&str]); 14] = [
         ("spacing 0.5", &[]),
         ("spacing 2", &[]),
         ("interleave 2", &["ray.interleave=2"]),
@@ -81,6 +81,11 @@ fn the_bound_holds_across_the_modes_it_covers() {
         ("distance volume", &["occupancy.structure=\"distance\""]),
         ("bricks 8", &["bricks.size=8"]),
         ("leap values", &["occupancy.structure=\"leap-values\""]),
+        ("iso surface", &["iso.enabled=true"]),
+        (
+            "iso, no refinement",
+            &["iso.enabled=true", "iso.refinement_steps=0"],
+        ),
         (
             "blocking",
             &["blocking.enabled=true", "blocking.block_size=8"],
@@ -238,17 +243,14 @@ fn the_bound_follows_the_widths_and_catches_an_image_of_other_widths() {
 #[test]
 fn configurations_outside_the_bound_are_refused_by_name() {
     let volume = phantom("phantom:sphere:32");
-    for (sets, shading, named) in [
-        (&["iso.enabled=true"][..], true, "iso surface"),
-        (
-            &[
-                "occupancy.structure=\"leap-values\"",
-                "leap_values.regions=\"homogeneous\"",
-            ][..],
-            false,
-            "homogeneous leap values",
-        ),
-    ] {
+    for (sets, shading, named) in [(
+        &[
+            "occupancy.structure=\"leap-values\"",
+            "leap_values.regions=\"homogeneous\"",
+        ][..],
+        false,
+        "homogeneous leap values",
+    )] {
         let mut run = run_of("phantom:sphere:32", "front", false, 16, sets);
         run.shading = shading;
         let reason = unsupported(&run.hardware).expect("outside the bound");

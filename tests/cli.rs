@@ -468,11 +468,19 @@ fn check_bound_reports_invariant_c_and_refuses_what_it_does_not_cover() {
         assert_eq!(report["error_bound"]["violations"], 0, "{command:?}");
         assert_eq!(report["error_bound"]["pixels"], 1024, "{command:?}");
     }
-    let png = dir.join("iso.png");
-    let mut args = vec!["render", "--model", "fixed", "--set", "iso.enabled=true"];
+    let png = dir.join("homogeneous.png");
+    let mut args = vec![
+        "render",
+        "--model",
+        "fixed",
+        "--set",
+        "occupancy.structure=\"leap-values\"",
+        "--set",
+        "leap_values.regions=\"homogeneous\"",
+    ];
     args.extend(frame);
     args.extend(["--check-bound", "-o", png.to_str().unwrap()]);
-    assert_fails(&args, &["--check-bound", "iso surface"], &png);
+    assert_fails(&args, &["--check-bound", "homogeneous leap values"], &png);
 }
 
 #[test]
