@@ -21,6 +21,18 @@ pub const IMAGE_AXES: &[(&str, std::ops::RangeInclusive<u32>)] = &[
     ("compositing.accumulator_bits", 6..=16),
 ];
 
+/// The gradient width, swept as an image axis when the base run shades.
+pub const SHADING_AXIS: (&str, std::ops::RangeInclusive<u32>) = ("shading.gradient_bits", 2..=12);
+
+/// The image axes a base run sweeps: `IMAGE_AXES`, and the gradient width when it shades.
+pub fn image_axes(shading: bool) -> Vec<(&'static str, std::ops::RangeInclusive<u32>)> {
+    let mut axes = IMAGE_AXES.to_vec();
+    if shading {
+        axes.push(SHADING_AXIS);
+    }
+    axes
+}
+
 /// The skip widths swept for cost (with leaping at `LEAP_SUBCUBE`).
 pub const COST_AXES: &[(&str, std::ops::RangeInclusive<u32>)] = &[
     ("skip.reciprocal_bits", 2..=16),
@@ -110,11 +122,11 @@ pub fn sweep(base: &RunDescription, volume: &Volume) -> Result<PrecisionReport> 
     plain_hardware.occupancy.hierarchy = false;
     let no_bound = crate::bound::unsupported(&base.hardware);
     let mut image = Vec::new();
-    for (field, range) in IMAGE_AXES {
+    for (field, range) in image_axes(base.shading) {
         for bits in range.clone() {
             // An increment cannot have more fraction bits than the base's positions (a base
             // with narrow positions failed on the sweep's own values).
-            if *field == "ray.increment_frac_bits" && bits > plain_hardware.ray.position_frac_bits {
+            if field == "ray.increment_frac_bits" && bits > plain_hardware.ray.position_frac_bits {
                 continue;
             }
             let point = RunDescription {
@@ -283,7 +295,7 @@ pub fn write_report(report: &PrecisionReport, out_dir: &Path) -> Result<Vec<Path
     written.push(path);
 
     let series = |metric: &dyn Fn(&Comparison) -> f64| -> Vec<Series> {
-        IMAGE_AXES
+        image_axes(report.image.iter().any(|p| p.field == SHADING_AXIS.0))
             .iter()
             .map(|(field, _)| Series {
                 name: field.to_string(),

@@ -431,6 +431,41 @@ fn precision_sweep_writes_tables_and_plots_and_skip_widths_never_change_the_imag
     );
 }
 
+/// A precision sweep in perspective, without ERT and shaded: the options reach its runs (the
+/// report names them) and the gradient width is swept as an image axis, within its bound.
+#[test]
+fn precision_sweeps_the_gradient_width_when_shading() {
+    let dir = scratch("precision-shaded");
+    succeeds(&[
+        "precision",
+        "--dataset",
+        "phantom:sphere:32",
+        "--size",
+        "24x24",
+        "--projection",
+        "persp",
+        "--no-ert",
+        "--shading",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("phantom-sphere-32.json")).unwrap())
+            .unwrap();
+    assert!(report["made_by"]
+        .as_str()
+        .unwrap()
+        .contains("--projection persp --no-ert --shading"));
+    let gradient: Vec<&serde_json::Value> = report["image"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|p| p["field"] == "shading.gradient_bits")
+        .collect();
+    assert_eq!(gradient.len(), 11);
+    assert!(gradient.iter().all(|p| p["bound"]["violations"] == 0));
+}
+
 /// `--check-bound` checks invariant (c) on the run's frame (render: either model; sim: the
 /// cycle model's image) and writes it into the JSON; a configuration outside the bound is
 /// refused before anything is written.

@@ -25,9 +25,22 @@ pub struct PrecisionArgs {
     /// 58/64), hide increment errors.
     #[arg(long, default_value = "orbit:7/72")]
     view: String,
+    /// Projection. Perspective rays each round their own increment, so they show ray-to-ray
+    /// differences an orthographic view (one increment for every ray) hides.
+    #[arg(long, value_enum, default_value = "ortho")]
+    projection: super::ProjectionArg,
     /// Image size WxH.
     #[arg(long, default_value = "128x128")]
     size: String,
+    /// Disable early ray termination (the same as --set compositing.ert=false): with ERT the
+    /// largest error sits near (1 − threshold) · 255 levels at any width, where one model
+    /// stops a sample before the other.
+    #[arg(long)]
+    no_ert: bool,
+    /// Phong shading from per-voxel gradients (then `shading.gradient_bits` is a width of its
+    /// own to sweep with `--set`).
+    #[arg(long)]
+    shading: bool,
     /// Output folder for the tables (CSV, Markdown, JSON) and charts (PNG, SVG).
     #[arg(long, default_value = "reports/precision")]
     out: PathBuf,
@@ -43,11 +56,11 @@ pub fn run(args: PrecisionArgs) -> Result<()> {
         data: args.data.clone(),
         tf: args.tf.clone(),
         view: args.view.clone(),
-        projection: super::ProjectionArg::Ortho,
+        projection: args.projection,
         size: args.size.clone(),
         spacing: 1.0,
-        no_ert: false,
-        shading: false,
+        no_ert: args.no_ert,
+        shading: args.shading,
     };
     let base = frame.describe(Model::Step, &args.hardware)?;
     // Its points set the leaping themselves: a leaping flag would only mislabel the report.
