@@ -37,8 +37,8 @@ pub struct PrecisionArgs {
     /// stops a sample before the other.
     #[arg(long)]
     no_ert: bool,
-    /// Phong shading from per-voxel gradients (then `shading.gradient_bits` is a width of its
-    /// own to sweep with `--set`).
+    /// Phong shading from per-voxel gradients; the sweep then also covers
+    /// `shading.gradient_bits` (2 to 12).
     #[arg(long)]
     shading: bool,
     /// Output folder for the tables (CSV, Markdown, JSON) and charts (PNG, SVG).
