@@ -5,11 +5,7 @@
 # Prints the Markdown table; fails if any pixel is over its bound.
 #   scripts/precision-bound.sh [VIZSIM] > table.md     (VIZSIM default: target/release/vizsim)
 set -euo pipefail
-vizsim=${1:-target/release/vizsim}
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-datasets="fuel neghip aneurism engine bonsai boston_teapot hydrogen_atom tooth_103x94x161 tooth_140x120x161 foot-lossy"
-for kind in sphere shells jet metaballs cast; do datasets="$datasets phantom:$kind:64"; done
+source "$(dirname "$0")/precision-common.sh"
 echo "| dataset | ortho max error | ortho max bound | ortho mean error | ortho mean bound | persp max error | persp max bound | persp mean error | persp mean bound |"
 echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
 for d in $datasets; do

@@ -4,11 +4,7 @@
 # orbit 7/72 and perspective at orbit 50/72. Prints the Markdown table.
 #   scripts/precision-default-widths.sh [VIZSIM] > table.md     (VIZSIM default: target/release/vizsim)
 set -euo pipefail
-vizsim=${1:-target/release/vizsim}
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-datasets="fuel neghip aneurism engine bonsai boston_teapot hydrogen_atom tooth_103x94x161 tooth_140x120x161 foot-lossy"
-for kind in sphere shells jet metaballs cast; do datasets="$datasets phantom:$kind:64"; done
+source "$(dirname "$0")/precision-common.sh"
 psnr_and_max() { # float.png fixed.png -> "PSNR | max"
     "$vizsim" compare "$1" "$2" --json "$tmp/c.json" > /dev/null
     python3 -c 'import json,sys; c=json.load(open(sys.argv[1])); print("%.2f | %d" % (c["psnr_db"], max(c["max_abs_error"])))' "$tmp/c.json"
