@@ -73,6 +73,14 @@ struct EntryRanges {
 
 const BLOCK: usize = 64;
 
+/// Widens the range lo..hi (per channel) to include l..h.
+fn include(lo: &mut [f64; 4], hi: &mut [f64; 4], l: [f64; 4], h: [f64; 4]) {
+    for c in 0..4 {
+        lo[c] = lo[c].min(l[c]);
+        hi[c] = hi[c].max(h[c]);
+    }
+}
+
 impl EntryRanges {
     fn new(lo: Vec<[f64; 4]>, hi: Vec<[f64; 4]>) -> Self {
         let fold = |values: &[[f64; 4]], pick: fn(f64, f64) -> f64, start: f64| {
@@ -99,12 +107,7 @@ impl EntryRanges {
     fn range(&self, first: usize, last: usize) -> ([f64; 4], [f64; 4]) {
         let mut lo = [f64::INFINITY; 4];
         let mut hi = [f64::NEG_INFINITY; 4];
-        let mut take = |l: &[f64; 4], h: &[f64; 4]| {
-            for c in 0..4 {
-                lo[c] = lo[c].min(l[c]);
-                hi[c] = hi[c].max(h[c]);
-            }
-        };
+        let mut take = |l: &[f64; 4], h: &[f64; 4]| include(&mut lo, &mut hi, *l, *h);
         let mut i = first;
         while i <= last {
             if i.is_multiple_of(BLOCK) && i + BLOCK - 1 <= last {
@@ -435,12 +438,7 @@ impl<'a> ErrorBound<'a> {
         let shading = self.shading.as_ref().expect("the iso surface is shaded");
         let slack = self.volume.max_value() as f64 * 16.0 / (1u64 << 24) as f64 + 1e-9;
         let (mut lo, mut hi) = ([f64::INFINITY; 4], [f64::NEG_INFINITY; 4]);
-        let mut take = |l: [f64; 4], h: [f64; 4]| {
-            for c in 0..4 {
-                lo[c] = lo[c].min(l[c]);
-                hi[c] = hi[c].max(h[c]);
-            }
-        };
+        let mut take = |l: [f64; 4], h: [f64; 4]| include(&mut lo, &mut hi, l, h);
         let mut surely_hit = false;
         for k in kept_first..kept_end {
             let (box_lo, box_hi, certain) = sample_box(k);
@@ -491,12 +489,7 @@ impl<'a> ErrorBound<'a> {
         };
         let mut float_lo = lerp(d_lo);
         let mut float_hi = float_lo;
-        let mut take = |l: [f64; 4], h: [f64; 4]| {
-            for c in 0..4 {
-                float_lo[c] = float_lo[c].min(l[c]);
-                float_hi[c] = float_hi[c].max(h[c]);
-            }
-        };
+        let mut take = |l: [f64; 4], h: [f64; 4]| include(&mut float_lo, &mut float_hi, l, h);
         let end = lerp(d_hi);
         take(end, end);
         // Between the ends the interpolated table is linear from one entry to the next: its
