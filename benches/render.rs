@@ -74,6 +74,46 @@ fn bench_float(bencher: divan::Bencher, width: usize) {
         .bench(|| pool.install(|| renderer.render(&camera)));
 }
 
+/// Invariant (c)'s predicted bound (`vizsim::bound`) of the same frame, one thread; divan's
+/// items are the float frame's samples (the bound visits each once). With and without ERT and
+/// shading: the check `--check-bound` adds to a run.
+#[divan::bench(sample_count = 5, args = ["plain", "ert", "shading"])]
+fn bound_256(bencher: divan::Bencher, mode: &str) {
+    let volume = volume_256();
+    let tf = transfer::resolve("class", &volume.name).unwrap();
+    let settings = RenderSettings {
+        ert_threshold: (mode != "plain").then_some(0.95),
+        shading: mode == "shading",
+        ..Default::default()
+    };
+    let config = vizsim::config::HardwareConfig::default_config();
+    let bound = vizsim::bound::ErrorBound::new(volume, &tf, &settings, &config).unwrap();
+    let camera = Camera::for_volume(
+        glam::Vec3::from(volume.extent()),
+        View::Orbit { k: 5, n: 72 },
+        Projection::Ortho,
+        256,
+        256,
+    )
+    .unwrap();
+    let samples = FloatRenderer::new(volume, &tf, &settings)
+        .unwrap()
+        .render(&camera)
+        .stats()
+        .samples;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    println!(
+        "bound_256 ({mode}): {} on 1 thread, {samples} float samples per frame",
+        volume.name
+    );
+    bencher
+        .counter(ItemsCount::new(samples))
+        .bench(|| pool.install(|| bound.predict(&camera)));
+}
+
 /// The functional fixed-point model, same frame; divan's items are steps (samples + leaps).
 /// `subcube` 0 = no leaping.
 #[divan::bench(sample_count = 5, args = [0, 8])]
