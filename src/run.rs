@@ -212,6 +212,12 @@ impl RunDescription {
                 ));
             }
         }
+        // Every volume has at least 8 bits: a gradient that does not fit the word beside 8 is
+        // refused here, before a sweep's first run (`check_gradient_word` refines it with the
+        // volume's own width when it is loaded).
+        if self.model == Model::Cycle && self.memory == Memory::Sdram {
+            check_gradient_word(self, None)?;
+        }
         if let Memory::Ideal { latency } = self.memory {
             if !(1..=MAX_IDEAL_LATENCY).contains(&latency) {
                 return Err(Error::Invalid(format!(
@@ -413,7 +419,7 @@ pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<
         Model::Step | Model::Cycle => {
             let sdram = run.model == Model::Cycle && run.memory == Memory::Sdram;
             if sdram {
-                check_gradient_word(run, volume)?;
+                check_gradient_word(run, Some(volume.bits))?;
                 let distance = matches!(run.leaping(), Leaping::Distance { .. });
                 if let Err(e) = check_volume_memory(&run.hardware, volume.dims, distance) {
                     return Err(with_blocking_hint(e, run, volume, &tf, &settings));
@@ -458,25 +464,30 @@ pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<
 /// The SDRAM model reads one word per voxel, so a voxel that does not fit its word is refused
 /// rather than timed as if it did. (With leap values `validate` checks the word with their
 /// fields too.)
-fn check_gradient_word(run: &RunDescription, volume: &Volume) -> Result<()> {
+/// `volume_bits` None: the smallest width a volume has (8), before the volume is loaded.
+fn check_gradient_word(run: &RunDescription, volume_bits: Option<u8>) -> Result<()> {
     let hardware = &run.hardware;
     if !(run.shading || hardware.iso.enabled) {
         return Ok(());
     }
     let word = hardware.volume_word.word_bits;
     let gradient = hardware.shading.gradient_bits;
-    let needed = volume.bits as u32 + 3 * gradient;
+    let bits = volume_bits.unwrap_or(8) as u32;
+    let needed = bits + 3 * gradient;
     if needed > word {
-        let fits = word.saturating_sub(volume.bits as u32) / 3;
+        let fits = word.saturating_sub(bits) / 3;
+        let volume = match volume_bits {
+            Some(bits) => format!("a shaded {bits}-bit volume needs"),
+            None => "a shaded volume needs at least".to_string(),
+        };
         return Err(Error::config(
             "hardware configuration",
             "shading.gradient_bits",
             format!(
-                "a shaded {}-bit volume needs {needed} bits per voxel word ({} density + 3 × \
-                 {gradient} gradient), the word has {word} (volume_word.word_bits); the cycle \
-                 model reads one word per voxel, so narrow the gradient to at most {fits} bits \
-                 (--set shading.gradient_bits={fits}), or simulate without shading",
-                volume.bits, volume.bits
+                "{volume} {needed} bits per voxel word ({bits} density + 3 × {gradient} \
+                 gradient), the word has {word} (volume_word.word_bits); the cycle model reads \
+                 one word per voxel, so narrow the gradient to at most {fits} bits (--set \
+                 shading.gradient_bits={fits}), or simulate without shading"
             ),
         ));
     }

@@ -448,4 +448,18 @@ fn a_shaded_voxel_wider_than_its_word_is_refused_by_the_sdram_model() {
     );
     assert!(prepare(&run_with(8, Memory::Sdram), &volume).is_ok());
     assert!(prepare(&run_with(9, Memory::Ideal { latency: 6 }), &volume).is_ok());
+    // A 16-bit volume at the default 8 gradient bits: refused once its width is known.
+    let wide = Volume {
+        bits: 16,
+        data: volume.data.iter().map(|&v| v * 200).collect(),
+        ..volume.clone()
+    };
+    let error = prepare(&run_with(8, Memory::Sdram), &wide)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        error.contains("16-bit volume needs 40 bits") && error.contains("=5"),
+        "{error}"
+    );
 }
