@@ -31,6 +31,18 @@ fn volume_256() -> &'static Volume {
     })
 }
 
+/// The benchmarks' view: frame 5 of a 72-frame orbit, orthographic, size × size pixels.
+fn orbit_camera(volume: &Volume, size: u32) -> Camera {
+    Camera::for_volume(
+        glam::Vec3::from(volume.extent()),
+        View::Orbit { k: 5, n: 72 },
+        Projection::Ortho,
+        size,
+        size,
+    )
+    .unwrap()
+}
+
 #[divan::bench(sample_count = 5)]
 fn float_256(bencher: divan::Bencher) {
     bench_float(bencher, vizsim::render::float::DEFAULT_PACKET_WIDTH);
@@ -52,14 +64,7 @@ fn bench_float(bencher: divan::Bencher, width: usize) {
     let renderer = FloatRenderer::new(volume, &tf, &settings)
         .and_then(|r| r.with_packet_width(width))
         .unwrap();
-    let camera = Camera::for_volume(
-        glam::Vec3::from(volume.extent()),
-        View::Orbit { k: 5, n: 72 },
-        Projection::Ortho,
-        256,
-        256,
-    )
-    .unwrap();
+    let camera = orbit_camera(volume, 256);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
@@ -88,14 +93,7 @@ fn bound_256(bencher: divan::Bencher, mode: &str) {
     };
     let config = vizsim::config::HardwareConfig::default_config();
     let bound = vizsim::bound::ErrorBound::new(volume, &tf, &settings, &config).unwrap();
-    let camera = Camera::for_volume(
-        glam::Vec3::from(volume.extent()),
-        View::Orbit { k: 5, n: 72 },
-        Projection::Ortho,
-        256,
-        256,
-    )
-    .unwrap();
+    let camera = orbit_camera(volume, 256);
     let samples = FloatRenderer::new(volume, &tf, &settings)
         .unwrap()
         .render(&camera)
@@ -158,14 +156,7 @@ fn bench_fixed(bencher: divan::Bencher, config: &vizsim::config::HardwareConfig,
     };
     let renderer =
         FixedRenderer::new(volume, &tf, &settings, config, Leaping::from_config(config)).unwrap();
-    let camera = Camera::for_volume(
-        glam::Vec3::from(volume.extent()),
-        View::Orbit { k: 5, n: 72 },
-        Projection::Ortho,
-        256,
-        256,
-    )
-    .unwrap();
+    let camera = orbit_camera(volume, 256);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
@@ -314,14 +305,7 @@ fn cycle_frame() -> (
         Leaping::None,
     )
     .unwrap();
-    let camera = Camera::for_volume(
-        glam::Vec3::from(volume.extent()),
-        View::Orbit { k: 5, n: 72 },
-        Projection::Ortho,
-        128,
-        128,
-    )
-    .unwrap();
+    let camera = orbit_camera(volume, 128);
     (config, renderer, camera)
 }
 
