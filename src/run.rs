@@ -571,13 +571,16 @@ fn with_blocking_hint(
     Error::config(source_name, field, format!("{message}{hint}"))
 }
 
-/// Optional observers of a cycle-model run.
+/// Optional observers of a run: of the cycle model, and the check of invariant (c).
 #[derive(Default)]
 pub struct Probes<'a> {
     /// VCD waveform of a cycle window.
     pub waveform: Option<&'a mut Waveform>,
     /// Every SDRAM command of a cycle window, as a checkable trace (docs/waveforms.md).
     pub command_trace: Option<&'a mut CommandTrace>,
+    /// `run` also checks invariant (c) on the frame (`check_error_bound`) into
+    /// `RunReport::error_bound`.
+    pub check_bound: bool,
 }
 
 /// The figures of one run. Fields a model does not produce are absent (not zero).
@@ -745,7 +748,14 @@ pub fn run(
     run.validate()?;
     let volume = crate::volume::dataset::load(&run.dataset, data_dir)?;
     let prepared = prepare(run, &volume)?;
-    execute(run, &prepared, probes)
+    let check_bound = probes.check_bound;
+    let mut report = execute(run, &prepared, probes)?;
+    if check_bound {
+        // The fixed-point image: the step model's, or the cycle model's (equal to it).
+        let fixed = (run.model != Model::Float).then_some(&report.frame);
+        report.error_bound = Some(check_error_bound(run, &volume, fixed)?);
+    }
+    Ok(report)
 }
 
 /// The run as far as its frame's timing and counts can tell: the run with what they cannot

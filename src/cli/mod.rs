@@ -498,19 +498,14 @@ pub fn refuse_unbounded(desc: &vizsim::run::RunDescription) -> Result<()> {
     Ok(())
 }
 
-/// `--check-bound` after the run: invariant (c) checked on its frame (the fixed-point image:
-/// the step model's, or the cycle model's, equal to it), the line to print, or the error of a
-/// broken invariant.
-pub fn check_bound(
-    report: &mut vizsim::run::RunReport,
-    volume: &vizsim::volume::Volume,
-) -> Result<String> {
-    let fixed = (report.run.model != vizsim::run::Model::Float).then_some(&report.frame);
-    let check = vizsim::run::check_error_bound(&report.run, volume, fixed)?;
+/// `--check-bound` after the run: the line to print for its check of invariant (c), or the
+/// error of a broken invariant; None when the run was not asked to check.
+pub fn bound_line(report: &vizsim::run::RunReport) -> Result<Option<String>> {
+    let Some(check) = &report.error_bound else {
+        return Ok(None);
+    };
     anyhow::ensure!(check.holds(), "invariant (c) broken: {}", check.describe());
-    let line = format!("invariant (c): {}", check.describe());
-    report.error_bound = Some(check);
-    Ok(line)
+    Ok(Some(format!("invariant (c): {}", check.describe())))
 }
 
 /// The lines `render` and `sim` print under their summary for the features a run has on (ray

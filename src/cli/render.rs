@@ -83,14 +83,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
     use std::fmt::Write as _;
     let said = vizsim::output::all_or_none(|| -> Result<String> {
         let mut said = String::new();
-        desc.validate()?;
-        let volume =
-            vizsim::volume::dataset::load(&desc.dataset, args.frame.data.dir()?.as_deref())?;
-        let mut report = run::execute(&desc, &run::prepare(&desc, &volume)?, Probes::default())?;
-        let bound_line = match args.check_bound {
-            true => Some(super::check_bound(&mut report, &volume)?),
-            false => None,
+        let probes = Probes {
+            check_bound: args.check_bound,
+            ..Probes::default()
         };
+        let report = run::run(&desc, args.frame.data.dir()?.as_deref(), probes)?;
+        let bound_line = super::bound_line(&report)?;
         report.frame.write_png(&args.output)?;
         if let Some(path) = &args.rays {
             report.frame.write_rays_csv(path)?;

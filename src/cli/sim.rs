@@ -156,14 +156,10 @@ pub fn run(args: SimArgs) -> Result<()> {
         let probes = Probes {
             waveform: waveform.as_mut(),
             command_trace: command_trace.as_mut(),
+            check_bound: args.check_bound,
         };
-        let volume =
-            vizsim::volume::dataset::load(&desc.dataset, args.frame.data.dir()?.as_deref())?;
-        let mut report = run::execute(&desc, &run::prepare(&desc, &volume)?, probes)?;
-        let bound_line = match args.check_bound {
-            true => Some(super::check_bound(&mut report, &volume)?),
-            false => None,
-        };
+        let report = run::run(&desc, args.frame.data.dir()?.as_deref(), probes)?;
+        let bound_line = super::bound_line(&report)?;
         if let Some(t) = command_trace {
             let commands = t.finish()?;
             writeln!(
