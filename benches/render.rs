@@ -31,6 +31,14 @@ fn volume_256() -> &'static Volume {
     })
 }
 
+/// A rayon pool of one thread: the benchmarks' figures are per thread.
+fn one_thread() -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+}
+
 /// The benchmarks' view: frame 5 of a 72-frame orbit, orthographic, size × size pixels.
 fn orbit_camera(volume: &Volume, size: u32) -> Camera {
     Camera::for_volume(
@@ -65,10 +73,7 @@ fn bench_float(bencher: divan::Bencher, width: usize) {
         .and_then(|r| r.with_packet_width(width))
         .unwrap();
     let camera = orbit_camera(volume, 256);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
+    let pool = one_thread();
     let samples = pool.install(|| renderer.render(&camera)).stats().samples;
     println!(
         "float_256 (packets of {width}): {} on 1 thread, {samples} samples per frame",
@@ -99,10 +104,7 @@ fn bound_256(bencher: divan::Bencher, mode: &str) {
         .render(&camera)
         .stats()
         .samples;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
+    let pool = one_thread();
     println!(
         "bound_256 ({mode}): {} on 1 thread, {samples} float samples per frame",
         volume.name
@@ -157,10 +159,7 @@ fn bench_fixed(bencher: divan::Bencher, config: &vizsim::config::HardwareConfig,
     let renderer =
         FixedRenderer::new(volume, &tf, &settings, config, Leaping::from_config(config)).unwrap();
     let camera = orbit_camera(volume, 256);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
+    let pool = one_thread();
     let steps = pool.install(|| renderer.render(&camera)).stats().steps();
     println!(
         "{label}: {} on 1 thread, {steps} steps per frame",

@@ -606,16 +606,7 @@ fn validation_keeps_ert_whatever_the_structures() {
     )
     .unwrap();
     let results = dir.join("runs");
-    let sweep = Command::new(exe)
-        .args(["sweep", experiment.to_str().unwrap(), "--out"])
-        .arg(&results)
-        .output()
-        .unwrap();
-    assert!(
-        sweep.status.success(),
-        "{}",
-        String::from_utf8_lossy(&sweep.stderr)
-    );
+    sweep_into(&experiment, &results);
     let validate = |structures: &str| {
         Command::new(exe)
             .args(["advise", "--validate"])
@@ -695,16 +686,7 @@ fn validation_progress_names_the_swept_values() {
     )
     .unwrap();
     let results = dir.join("runs");
-    let sweep = Command::new(exe)
-        .args(["sweep", experiment.to_str().unwrap(), "--out"])
-        .arg(&results)
-        .output()
-        .unwrap();
-    assert!(
-        sweep.status.success(),
-        "{}",
-        String::from_utf8_lossy(&sweep.stderr)
-    );
+    sweep_into(&experiment, &results);
     let out = Command::new(exe)
         .args(["advise", "--validate"])
         .arg(&results)
@@ -730,16 +712,7 @@ fn validation_progress_names_the_swept_values() {
     )
     .unwrap();
     let sampled = dir.join("sampled");
-    let sweep = Command::new(exe)
-        .args(["sweep", sampled_experiment.to_str().unwrap(), "--out"])
-        .arg(&sampled)
-        .output()
-        .unwrap();
-    assert!(
-        sweep.status.success(),
-        "{}",
-        String::from_utf8_lossy(&sweep.stderr)
-    );
+    sweep_into(&sampled_experiment, &sampled);
     let validate = |folder: &std::path::Path| {
         Command::new(exe)
             .args(["advise", "--validate"])
@@ -766,4 +739,18 @@ fn validation_progress_names_the_swept_values() {
         "{stderr}"
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Runs `vizsim sweep EXPERIMENT --out OUT`, which must succeed (its stderr shown if not).
+fn sweep_into(experiment: &std::path::Path, out: &std::path::Path) {
+    let sweep = Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args(["sweep", experiment.to_str().unwrap(), "--out"])
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(
+        sweep.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sweep.stderr)
+    );
 }
