@@ -435,12 +435,21 @@ pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<
                         "hardware configuration",
                         "memory.rows",
                         format!(
-                            "a {:?} volume does not fit even with blocking: {}, {} rows per \
-                             bank; the modules have {} rows",
+                            "the {:?} volume does not fit with blocking: {}; the modules have {} \
+                             rows per bank{}",
                             volume.dims,
                             stats.describe(),
-                            stats.rows_blocked,
-                            memory.rows
+                            memory.rows,
+                            if stats.rows_unblocked <= memory.rows as u64 {
+                                format!(
+                                    ", and without blocking it takes {} (a slot of (B + 2)³ \
+                                     voxels fills whole rows; use a larger blocking.block_size \
+                                     or none)",
+                                    stats.rows_unblocked
+                                )
+                            } else {
+                                String::new()
+                            }
                         ),
                     ));
                 }

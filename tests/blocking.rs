@@ -424,8 +424,24 @@ fn a_volume_too_large_without_blocking_renders_with_it() {
         .err()
         .expect("does not fit")
         .to_string();
-    assert!(e.contains("does not fit even with blocking"), "{e}");
+    assert!(e.contains("does not fit with blocking"), "{e}");
     assert!(e.contains("81 active blocks of 512"), "{e}");
+    assert!(!e.contains("without blocking it takes"), "{e}");
+    // Fits without blocking (256 rows) but not with 4³ blocks, whose slots take whole rows:
+    // the error says blocking is what does not fit.
+    let small_blocks = description(
+        &volume,
+        "class",
+        Model::Cycle,
+        &blocked(4, &["memory.rows=256"]),
+    );
+    let e = prepare(&small_blocks, &volume)
+        .err()
+        .expect("4³ slots do not fit")
+        .to_string();
+    assert!(e.contains("does not fit with blocking"), "{e}");
+    assert!(e.contains("without blocking it takes 256"), "{e}");
+    assert!(e.contains("larger blocking.block_size"), "{e}");
     // The functional model does not need the memory to fit.
     render(
         &volume,
@@ -742,4 +758,11 @@ fn the_summary_says_how_much_more_memory_blocking_takes_when_it_saves_none() {
         "{stdout}"
     );
     assert!(!stdout.contains("% saved"), "{stdout}");
+    // And why: 8³ slots of 10³ voxels fill half a row, so 16 of the 64 blocks at most.
+    assert!(
+        stdout.contains("note: blocking costs more memory than it saves here")
+            && stdout.contains("250 words per module in 1 row unit(s) of 512 (48.8 % used)")
+            && stdout.contains("at most 16 of the 64 blocks active, and 50 are"),
+        "{stdout}"
+    );
 }

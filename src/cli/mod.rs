@@ -516,6 +516,7 @@ pub fn feature_lines(config: &HardwareConfig, m: &vizsim::run::Measurements) -> 
         iso_text(config, m),
         structure_memory_text(m),
         blocking_text(m),
+        blocking_cost_note(config, m),
     ]
     .into_iter()
     .flatten()
@@ -604,6 +605,41 @@ fn blocking_text(m: &vizsim::run::Measurements) -> Option<String> {
         text += &format!("; {zero} samples in inactive blocks read as zero (no memory read)");
     }
     Some(text)
+}
+
+/// When blocking takes more memory than the unblocked volume, why: a slot of (B + 2)³ voxels
+/// takes whole row units, so it costs several times its block's data (4³ blocks: 54 words of a
+/// 512-word row per module), and blocking saves only while few enough blocks are active. None
+/// otherwise.
+fn blocking_cost_note(config: &HardwareConfig, m: &vizsim::run::Measurements) -> Option<String> {
+    let b = m.blocking.as_ref()?;
+    if b.memory_words_blocked <= b.memory_words_unblocked {
+        return None;
+    }
+    let memory = &config.memory;
+    let layout = vizsim::blocking::SlotLayout::new(memory, b.block_size);
+    let unit_words = layout.units * memory.columns as usize;
+    let fill = layout.words() as f64 / unit_words.max(1) as f64;
+    // The most active blocks whose slots still fit in the unblocked volume's rows.
+    let break_even = b.rows_unblocked * memory.banks as u64 / layout.units.max(1) as u64;
+    let advice = if fill < 0.5 {
+        "a larger blocking.block_size fills its row units better"
+    } else {
+        "most blocks hold visible data, so blocking cannot save memory on this volume"
+    };
+    Some(format!(
+        "note: blocking costs more memory than it saves here: each {bs}³ block takes a slot of \
+         {edge}³ voxels, {used} words per module in {units} row unit(s) of {unit_words} ({fill:.1} % \
+         used), so blocking saves memory only with at most {break_even} of the {blocks} blocks \
+         active, and {active} are; {advice} (docs/model.md, \"Blocking\")",
+        bs = b.block_size,
+        edge = b.block_size + 2,
+        used = layout.words(),
+        units = layout.units,
+        fill = 100.0 * fill,
+        blocks = b.blocks,
+        active = b.active_blocks,
+    ))
 }
 
 /// 1234567 -> "1,234,567".
