@@ -1727,3 +1727,55 @@ fn merge_refuses_shards_of_two_versions_of_an_experiment() {
     );
     assert!(!merged.exists());
 }
+
+/// Folders swept with `--model step` and `--model cycle` from one experiment file are one
+/// version of it: they merge into the full sweep's results (the review found them refused as
+/// "different versions", each folder's description listing only its model's runs); a folder of
+/// the other model from an edited file is still refused.
+#[test]
+fn merge_joins_folders_swept_with_different_models() {
+    let dir = temp_dir("merge-models");
+    let text = |rays: &str| {
+        format!(
+            "name = \"models\"\ndatasets = [\"phantom:sphere:16\"]\ntf = [\"zero\"]\n\
+             modes = [\"none\"]\nmodels = [\"step\", \"cycle\"]\n[frames]\norbit = 2\n\
+             size = \"8x8\"\n[axes]\n\"ray_queue.rays\" = [{rays}]\n"
+        )
+    };
+    let arg = |p: &PathBuf| p.to_str().unwrap().to_string();
+    let sweep = |rays: &str, name: &str, extra: &[&str]| {
+        let file = dir.join(format!("{name}.toml"));
+        std::fs::write(&file, text(rays)).unwrap();
+        let out = dir.join(name);
+        let mut args = vec!["sweep", file.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        args.push("--quiet");
+        vizsim_ok(&args);
+        out
+    };
+    let step = sweep("8, 16", "step", &["--model", "step"]);
+    let cycle = sweep("8, 16", "cycle", &["--model", "cycle"]);
+    let full = sweep("8, 16", "full", &[]);
+    let merged = dir.join("merged");
+    vizsim_ok(&["merge", &arg(&step), &arg(&cycle), "--out", &arg(&merged)]);
+    let sorted = |d: &PathBuf| {
+        let text = std::fs::read_to_string(d.join("results.jsonl")).unwrap();
+        let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+        lines.sort();
+        lines
+    };
+    assert_eq!(sorted(&merged), sorted(&full));
+    assert_eq!(sorted(&merged).len(), 8);
+    let resolved = |d: &PathBuf| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(d.join("experiment.resolved.json")).unwrap())
+            .unwrap()
+    };
+    assert_eq!(resolved(&step)["model"], "step");
+    assert!(resolved(&merged)["model"].is_null());
+    assert_eq!(resolved(&merged)["runs"], resolved(&full)["runs"]);
+    let edited = sweep("8, 32", "edited", &["--model", "cycle"]);
+    vizsim_fails(
+        &["merge", &arg(&step), &arg(&edited), "--out", &arg(&dir.join("mixed"))],
+        "different versions of experiment `models`",
+    );
+}

@@ -290,7 +290,7 @@ fn quick_experiment(data_dir: Option<&Path>, out: &Path) -> Result<()> {
             }
         }
     }
-    let summary = experiment::sweep(&expansion, out, None, false)?;
+    let summary = experiment::sweep(&expansion, out, None, None, false)?;
     println!(
         "quick experiment: {} runs in {:.1} s -> {}",
         summary.total,

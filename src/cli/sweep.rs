@@ -81,12 +81,10 @@ pub fn run(args: SweepArgs) -> Result<()> {
         })?;
         (None, omitted)
     } else {
-        let mut e = spec::expand_plan(plan)?;
+        let e = spec::expand_plan(plan)?;
         for r in &e.runs {
             count(r, &e.volumes);
         }
-        e.runs
-            .retain(|r| model.is_none_or(|m| r.run.model.name() == m));
         let omitted = spec::Omitted {
             skipped: e.skipped.clone(),
             duplicates: e.duplicates,
@@ -138,7 +136,11 @@ pub fn run(args: SweepArgs) -> Result<()> {
         return Ok(());
     };
     let progress = !quiet && std::io::stderr().is_terminal();
-    let summary = experiment::sweep(&expansion, out, shard, progress)?;
+    let model = model
+        .map(vizsim::run::Model::parse)
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
+    let summary = experiment::sweep(&expansion, out, shard, model, progress)?;
     println!(
         "ran {} runs in {:.1} s ({} were already done) -> {}",
         summary.ran,

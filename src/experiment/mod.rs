@@ -332,12 +332,15 @@ pub struct SweepSummary {
     pub wall_seconds: f64,
 }
 
-/// Runs the pending runs of `expansion` (those in `shard`, not yet in `out`), appending each
-/// result line to `out/results.jsonl` as it finishes.
+/// Runs the pending runs of `expansion` (those in `shard` and of `model`, not yet in `out`),
+/// appending each result line to `out/results.jsonl` as it finishes. The folder's description
+/// lists every run of the expansion with the shard and model swept, so that folders swept with
+/// different `--model`s are recognised as one version of the experiment (`merge`).
 pub fn sweep(
     expansion: &Expansion,
     out: &Path,
     shard: Option<Shard>,
+    model: Option<Model>,
     progress: bool,
 ) -> Result<SweepSummary> {
     let start = Instant::now();
@@ -345,10 +348,10 @@ pub fn sweep(
     let mine: Vec<&RunSpec> = expansion
         .runs
         .iter()
-        .filter(|r| shard.is_none_or(|s| s.contains(r)))
+        .filter(|r| shard.is_none_or(|s| s.contains(r)) && model.is_none_or(|m| r.run.model == m))
         .collect();
     let store = ResultStore::open(out)?;
-    store.write_resolved(expansion, shard)?;
+    store.write_resolved(expansion, shard, model)?;
     let pending: Vec<&RunSpec> = mine
         .iter()
         .copied()
@@ -606,6 +609,8 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<Merged> {
     // And of one version of it: shards swept from different experiment files (an axis value
     // changed between them) would merge into a folder whose description names only the first.
     let mut version: Option<(Value, String)> = None;
+    // The `--model` each input was swept with ("null": both).
+    let mut models_swept = std::collections::BTreeSet::new();
     let mut torn = Vec::new();
     for dir in &inputs {
         if let Some(name) = store::experiment_name(dir)? {
@@ -613,17 +618,26 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<Merged> {
         }
         // The runs the version expands to (their keys), not the file's text: a description
         // edited between shards changes no run.
-        let file = crate::input::read_existing(&dir.join(store::RESOLVED))?
-            .and_then(|bytes| serde_json::from_slice::<Value>(&bytes).ok())
-            .and_then(|resolved| {
-                let keys: std::collections::BTreeSet<String> = resolved
-                    .get("runs")?
-                    .as_array()?
-                    .iter()
-                    .filter_map(|r| r.get("key")?.as_str().map(str::to_string))
-                    .collect();
-                Some(Value::from(keys.into_iter().collect::<Vec<_>>()))
-            });
+        let resolved = crate::input::read_existing(&dir.join(store::RESOLVED))?
+            .and_then(|bytes| serde_json::from_slice::<Value>(&bytes).ok());
+        if let Some(resolved) = &resolved {
+            models_swept.insert(
+                resolved
+                    .get("model")
+                    .cloned()
+                    .unwrap_or(Value::Null)
+                    .to_string(),
+            );
+        }
+        let file = resolved.and_then(|resolved| {
+            let keys: std::collections::BTreeSet<String> = resolved
+                .get("runs")?
+                .as_array()?
+                .iter()
+                .filter_map(|r| r.get("key")?.as_str().map(str::to_string))
+                .collect();
+            Some(Value::from(keys.into_iter().collect::<Vec<_>>()))
+        });
         if let Some(file) = file {
             match &version {
                 None => version = Some((file, described(dir))),
@@ -714,6 +728,10 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<Merged> {
                 // an unsharded sweep writes it.
                 Ok(Value::Object(mut description)) if description.contains_key("shard") => {
                     description.insert("shard".into(), Value::Null);
+                    // Inputs swept with different `--model`s merge into a folder of both.
+                    if models_swept.len() > 1 {
+                        description.insert("model".into(), Value::Null);
+                    }
                     crate::output::write_json(&out.join(store::RESOLVED), &description)?;
                 }
                 _ => crate::output::write_atomically(&out.join(store::RESOLVED), |w| {

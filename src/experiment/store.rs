@@ -478,7 +478,12 @@ impl ResultStore {
 
     /// The experiment as resolved (its file, base configuration and every run's parameters),
     /// written before any run.
-    pub fn write_resolved(&self, expansion: &Expansion, shard: Option<Shard>) -> Result<()> {
+    pub fn write_resolved(
+        &self,
+        expansion: &Expansion,
+        shard: Option<Shard>,
+        model: Option<crate::run::Model>,
+    ) -> Result<()> {
         let runs: Vec<Value> = expansion
             .runs
             .iter()
@@ -495,6 +500,7 @@ impl ResultStore {
             "experiment": expansion.experiment,
             "source": expansion.source,
             "shard": shard,
+            "model": model,
             "first_run_config": base,
             "skipped": expansion.skipped,
             "runs": runs,
