@@ -39,3 +39,14 @@ pub mod clip;
 pub mod iso;
 
 pub use error::{Error, Result};
+
+/// `eprintln!` for notes and errors: a line on standard error, where a standard error that
+/// cannot be written (a full log disk, `2>/dev/full`) is ignored instead of panicking, so that a
+/// note never stops a command and an error still exits with status 1.
+#[macro_export]
+macro_rules! note {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}

@@ -9,7 +9,7 @@ fn main() {
     end_quietly_when_the_reader_is_gone();
     let args = cli::Cli::parse();
     if let Err(err) = cli::run(args) {
-        eprintln!("error: {err:#}");
+        vizsim::note!("error: {err:#}");
         std::process::exit(1);
     }
 }
@@ -18,7 +18,7 @@ fn main() {
 /// (Rust ignores SIGPIPE, so the write returns EPIPE) and `println!` panics. A command-line
 /// tool ends quietly there instead, with the status of one killed by SIGPIPE (128 + 13), as a C
 /// tool would be. Any other failure to print (a full disk) is an error with status 1, not a
-/// panic. Any other panic still reports as usual.
+/// panic; so is a standard error that cannot be written. Any other panic still reports as usual.
 fn end_quietly_when_the_reader_is_gone() {
     let report = std::panic::take_hook();
     std::panic::set_hook(Box::new(move |info| {
@@ -42,6 +42,11 @@ fn end_quietly_when_the_reader_is_gone() {
                 "error: writing to standard output{cause}",
                 cause = cause.trim_end()
             );
+            std::process::exit(1);
+        }
+        // Standard error itself cannot be written (`2>/dev/full`; vizsim's own notes use
+        // `note!`, which ignores that): a failure, but not a panic's status 101.
+        if message.starts_with("failed printing to stderr") {
             std::process::exit(1);
         }
         report(info);

@@ -684,6 +684,54 @@ fn a_full_standard_output_is_an_error_not_a_panic() {
     );
 }
 
+/// `vizsim … 2>/dev/full`: a standard error that cannot be written makes an error exit with
+/// status 1 (not a panic's 101) and lets a note pass (found by probing: `info nonexist` and a
+/// render with a stand-in note exited 101).
+#[test]
+fn a_full_standard_error_is_no_panic() {
+    let run = |args: &[&str]| {
+        let Ok(full) = std::fs::OpenOptions::new().write(true).open("/dev/full") else {
+            return None;
+        };
+        Some(
+            Command::new(env!("CARGO_BIN_EXE_vizsim"))
+                .args(args)
+                .current_dir(env!("CARGO_MANIFEST_DIR"))
+                .stderr(full)
+                .output()
+                .expect("run vizsim"),
+        )
+    };
+    let Some(error) = run(&["info", "no-such-dataset"]) else {
+        eprintln!("skipped: no /dev/full here");
+        return;
+    };
+    assert_eq!(error.status.code(), Some(1));
+    // A published name that resolves to its stand-in (skull: the tooth) says so on stderr.
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    if !data.is_dir() {
+        eprintln!("skipped the note case: no ../shared/data");
+        return;
+    }
+    let png = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("vizsim-full-stderr-{}.png", std::process::id()));
+    let note = run(&[
+        "render",
+        "--dataset",
+        "skull",
+        "--data-dir",
+        data.to_str().unwrap(),
+        "--size",
+        "8x8",
+        "-o",
+        png.to_str().unwrap(),
+    ])
+    .unwrap();
+    assert!(note.status.success(), "{:?}", note.status);
+    assert!(png.exists());
+    let _ = std::fs::remove_file(&png);
+}
+
 /// An output that names an input, or another output of the same command, is refused before
 /// anything is written: the later write would silently replace the file (found by probing:
 /// `compare a.png b.png --diff a.png` overwrote a.png).

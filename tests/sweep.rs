@@ -1747,7 +1747,12 @@ fn merge_joins_folders_swept_with_different_models() {
         let file = dir.join(format!("{name}.toml"));
         std::fs::write(&file, text(rays)).unwrap();
         let out = dir.join(name);
-        let mut args = vec!["sweep", file.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        let mut args = vec![
+            "sweep",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
         args.extend_from_slice(extra);
         args.push("--quiet");
         vizsim_ok(&args);
@@ -1775,7 +1780,13 @@ fn merge_joins_folders_swept_with_different_models() {
     assert_eq!(resolved(&merged)["runs"], resolved(&full)["runs"]);
     let edited = sweep("8, 32", "edited", &["--model", "cycle"]);
     vizsim_fails(
-        &["merge", &arg(&step), &arg(&edited), "--out", &arg(&dir.join("mixed"))],
+        &[
+            "merge",
+            &arg(&step),
+            &arg(&edited),
+            "--out",
+            &arg(&dir.join("mixed")),
+        ],
         "different versions of experiment `models`",
     );
 }

@@ -206,7 +206,7 @@ fn validate(args: &AdviseArgs, dir: &std::path::Path) -> Result<()> {
             } else {
                 format!(" ({})", row.axes)
             };
-            eprintln!(
+            vizsim::note!(
                 "{} {}{axes}: advised {} ({:.2} fps), best {} ({:.2} fps), loss {:.1} %, {:.2} s",
                 row.dataset,
                 row.tf,
@@ -237,7 +237,7 @@ fn validate(args: &AdviseArgs, dir: &std::path::Path) -> Result<()> {
             .with_context(|| format!("--validate {}", dir.display()))?
     };
     if validation.torn_last_line {
-        eprintln!(
+        vizsim::note!(
             "{}",
             vizsim::experiment::store::torn_note(&dir.join(vizsim::experiment::store::RESULTS))
         );

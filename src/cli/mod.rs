@@ -196,7 +196,7 @@ impl DataArgs {
 pub fn note_stand_in(spec: &str) {
     if let Some(stand_in) = dataset::stand_in_for(spec) {
         // On standard error: standard output may be JSON (`--json`).
-        eprintln!(
+        vizsim::note!(
             "{spec}: the published dataset is not available; its stand-in {stand_in} is used"
         );
     }

@@ -20,7 +20,7 @@ pub fn merge(args: MergeArgs) -> Result<()> {
     let inputs: Vec<&Path> = args.inputs.iter().map(PathBuf::as_path).collect();
     let merged = vizsim::experiment::merge(&inputs, &args.out)?;
     for path in &merged.torn {
-        eprintln!("{}", vizsim::experiment::store::torn_note(path));
+        vizsim::note!("{}", vizsim::experiment::store::torn_note(path));
     }
     println!(
         "{} runs -> {}",
@@ -73,7 +73,7 @@ pub fn plot(args: PlotArgs) -> Result<()> {
     })?;
     if written == 0 {
         // Said, not "0 charts -> DIR" for a folder that was never made.
-        eprintln!(
+        vizsim::note!(
             "no chart to draw: a per-frame chart needs two frames or more, the others leaping \
              modes or a swept field; nothing written"
         );
@@ -123,7 +123,7 @@ impl ResultsArgs {
         );
         let (mut lines, torn) = vizsim::tables::read_results(&path)?;
         if torn {
-            eprintln!("{}", vizsim::experiment::store::torn_note(&path));
+            vizsim::note!("{}", vizsim::experiment::store::torn_note(&path));
         }
         // A requested dataset the results do not hold (a typo) is named, not ignored.
         if let Some(absent) = self.dataset.iter().find(|d| {
@@ -295,7 +295,7 @@ pub fn write_tables(
     print!("{all_markdown}");
     let missing = missing(&metrics, &tabulated);
     if asked && !missing.is_empty() {
-        eprintln!(
+        vizsim::note!(
             "note: no result{of_model} carries --metric {}: no table for it",
             missing.join(",")
         );

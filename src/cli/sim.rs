@@ -276,7 +276,11 @@ pub fn run(args: SimArgs) -> Result<()> {
         Ok((said, warned))
     })?;
     print!("{said}");
-    eprint!("{warned}");
+    {
+        use std::io::Write;
+        // A standard error that cannot be written is no reason to fail a finished run.
+        let _ = write!(std::io::stderr(), "{warned}");
+    }
     Ok(())
 }
 

@@ -146,7 +146,7 @@ pub fn run(args: VerifySkipArgs) -> Result<()> {
     );
     // The cost is said before a run that takes a while (on stderr: --json output stays JSON).
     if cases as f64 > 10.0 * CASES_PER_SECOND {
-        eprintln!(
+        vizsim::note!(
             "verify-skip: {} cases, about {estimate} on one core",
             super::thousands(cases)
         );

@@ -335,7 +335,7 @@ impl ResultStore {
                 .open(&path)
                 .map_err(|e| Error::io(&path, e))?;
             file.set_len(complete).map_err(|e| Error::io(&path, e))?;
-            eprintln!(
+            crate::note!(
                 "{}: dropped a torn last line (interrupted write); its run is done again",
                 path.display()
             );
@@ -346,7 +346,7 @@ impl ResultStore {
             .collect();
         let timing_path = dir.join(TIMING);
         if (!ordered.is_empty() || timing_path.exists()) && repair_timing(&timing_path, &ordered)? {
-            eprintln!(
+            crate::note!(
                 "{}: repaired (one wall time per result; torn lines dropped, lost times null)",
                 timing_path.display()
             );
