@@ -364,12 +364,29 @@ pub fn check_distinct(inputs: &[&Path], outputs: &[(&str, &Path)]) -> Result<()>
 
 /// Fails early, before a long computation, when `path` cannot be written: a folder, or a
 /// folder that cannot be created or written into (tried with the temporary the write will
-/// use). Devices and FIFOs are not opened here (opening a FIFO waits for its reader).
+/// use). Devices and FIFOs are not opened here (opening a FIFO waits for its reader). Folders
+/// the check makes are removed again: the write makes them when it comes, and a command that
+/// fails before it leaves no empty folder behind.
 pub fn check_writable(path: &Path) -> Result<()> {
     if let Target::Atomic(real) = target(path)? {
-        let tmp = temporary_path(&real)?;
-        std::fs::File::create(&tmp).map_err(|e| Error::io(path, e))?;
-        let _ = std::fs::remove_file(&tmp);
+        let parent = match real.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => std::path::PathBuf::from("."),
+        };
+        let missing: Vec<&Path> = parent
+            .ancestors()
+            .take_while(|p| !p.as_os_str().is_empty() && !p.exists())
+            .collect();
+        let checked = temporary_path(&real).and_then(|tmp| {
+            std::fs::File::create(&tmp).map_err(|e| Error::io(path, e))?;
+            let _ = std::fs::remove_file(&tmp);
+            Ok(())
+        });
+        // Deepest first; a folder something else wrote into meanwhile stays.
+        for dir in missing {
+            let _ = std::fs::remove_dir(dir);
+        }
+        checked?;
     }
     Ok(())
 }

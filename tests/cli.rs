@@ -732,6 +732,41 @@ fn a_full_standard_error_is_no_panic() {
     let _ = std::fs::remove_file(&png);
 }
 
+/// A command that fails after checking its outputs leaves no folder it made for them (found by
+/// probing: a render refused for its iso value left `newdir/` and `newdir2/sub/` behind); one
+/// that succeeds makes them.
+#[test]
+fn a_failed_command_leaves_no_new_folders() {
+    let dir = scratch("no-new-folders");
+    let png = dir.join("a/b/x.png");
+    let json = dir.join("c/x.json");
+    let args = |iso: &'static str| {
+        vec![
+            "render".to_string(),
+            "--dataset".into(),
+            "phantom:sphere:16".into(),
+            "--size".into(),
+            "8x8".into(),
+            "--set".into(),
+            "iso.enabled=true".into(),
+            "--set".into(),
+            format!("iso.value={iso}"),
+            "-o".into(),
+            png.to_str().unwrap().into(),
+            "--json".into(),
+            json.to_str().unwrap().into(),
+        ]
+    };
+    let failed = args("60000");
+    let out = vizsim(&failed.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("iso.value"));
+    assert!(!dir.join("a").exists() && !dir.join("c").exists());
+    let ok = args("100");
+    succeeds(&ok.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(png.is_file() && json.is_file());
+}
+
 /// An output that names an input, or another output of the same command, is refused before
 /// anything is written: the later write would silently replace the file (found by probing:
 /// `compare a.png b.png --diff a.png` overwrote a.png).
