@@ -41,12 +41,26 @@ pub struct BlockTable {
 /// Checks a block size against the volume: it must divide every dimension.
 pub fn check_block_size(size: usize, dims: [usize; 3]) -> Result<u32> {
     if let Some(a) = (0..3).find(|&a| !dims[a].is_multiple_of(size)) {
+        // The largest power of two (blocks are 4..=256, powers of two) dividing every dimension.
+        let largest = dims
+            .iter()
+            .map(|&d| 1usize << d.trailing_zeros().min(8))
+            .min()
+            .unwrap_or(1);
+        let advice = if largest >= 4 {
+            format!("use a block size that divides every dimension (at most {largest})")
+        } else {
+            format!(
+                "no block size does (4 to 256, powers of two; the largest power of two dividing \
+                 every dimension is {largest}): blocking cannot store this volume, whose edge \
+                 blocks are not padded"
+            )
+        };
         return Err(Error::config(
             "hardware configuration",
             "blocking.block_size",
             format!(
-                "{size} does not divide the volume's {} dimension ({}, volume {dims:?}); use a \
-                 block size that divides every dimension",
+                "{size} does not divide the volume's {} dimension ({}, volume {dims:?}); {advice}",
                 ["x", "y", "z"][a],
                 dims[a]
             ),

@@ -516,9 +516,19 @@ fn bad_block_sizes_give_clear_errors() {
             "{e}"
         );
         assert!(e.contains("48"), "{e}");
+        assert!(e.contains("at most 16"), "{e}");
     }
     // 16 divides it.
     render(&volume, "class", Model::Cycle, &blocked(16, &[]));
+    // An odd dimension: no power of two divides it, and the error does not ask for one.
+    let e = vizsim::blocking::check_block_size(32, [103, 94, 161])
+        .err()
+        .expect("rejected")
+        .to_string();
+    assert!(
+        e.contains("no block size does") && !e.contains("use a block size"),
+        "{e}"
+    );
 }
 
 /// The section is written out only when not at its defaults, so run keys stay unchanged.

@@ -732,6 +732,56 @@ fn a_full_standard_error_is_no_panic() {
     let _ = std::fs::remove_file(&png);
 }
 
+/// Options that take several values take them as a comma list too (`verify-skip --subcube
+/// 2,16` was "invalid digit"), and `--occupancy 0` names the '0' map as its help says.
+#[test]
+fn list_options_take_commas_and_the_zero_map_is_0() {
+    let out = succeeds(&[
+        "verify-skip",
+        "--increment-bits",
+        "5",
+        "--reciprocal-bits",
+        "5",
+        "--subcube",
+        "2,16",
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("sub-cube 2³") && text.contains("sub-cube 16³"),
+        "{text}"
+    );
+    let dir = scratch("occupancy-0");
+    let png = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    let json = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    for (occupancy, name) in [("0", "a"), ("zero", "b")] {
+        succeeds(&[
+            "render",
+            "--dataset",
+            "phantom:sphere:16",
+            "--model",
+            "fixed",
+            "--subcube",
+            "4",
+            "--occupancy",
+            occupancy,
+            "--size",
+            "8x8",
+            "-o",
+            &png(&format!("{name}.png")),
+            "--json",
+            &json(&format!("{name}.json")),
+        ]);
+    }
+    let kind = |name: &str| -> serde_json::Value {
+        let text = std::fs::read_to_string(dir.join(format!("{name}.json"))).unwrap();
+        serde_json::from_str::<serde_json::Value>(&text).unwrap()["run"]["hardware"]["occupancy"]
+            ["kind"]
+            .clone()
+    };
+    assert_eq!(kind("a"), "zero");
+    assert_eq!(kind("a"), kind("b"));
+}
+
 /// A command that fails after checking its outputs leaves no folder it made for them (found by
 /// probing: a render refused for its iso value left `newdir/` and `newdir2/sub/` behind); one
 /// that succeeds makes them.

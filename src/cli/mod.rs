@@ -415,6 +415,8 @@ impl HardwareArgs {
 
 #[derive(clap::ValueEnum, Clone, Copy)]
 pub enum OccupancyArg {
+    /// The '0' map (any non-zero voxel); `0` is accepted too.
+    #[value(alias = "0")]
     Zero,
     Class,
 }

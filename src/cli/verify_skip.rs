@@ -17,8 +17,9 @@ pub struct VerifySkipArgs {
     /// Fraction bits kept of the boundary distance (default: = position bits).
     #[arg(long)]
     distance_bits: Option<u32>,
-    /// Sub-cube edge in voxels (2, 4, 8, 16, 32 or 64); several allowed.
-    #[arg(long, default_values_t = [16])]
+    /// Sub-cube edge in voxels (2, 4, 8, 16, 32 or 64); several allowed, repeated or as a
+    /// list: --subcube 2,16.
+    #[arg(long, default_values_t = [16], value_delimiter = ',')]
     subcube: Vec<usize>,
     /// Reciprocal rounding: `down` (shipped, safe) or `nearest` (unsafe, shows the checker
     /// works). Any violation makes the exit status 1.
