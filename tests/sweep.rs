@@ -575,6 +575,18 @@ fn merge_and_table_refuse_what_would_mislead() {
         ],
         "`tff` is not a field",
     );
+    // A dataset the results do not hold (a typo) is named, with those they hold.
+    vizsim_fails(
+        &[
+            "table",
+            shard_,
+            "--dataset",
+            "phantom:sphere:61",
+            "--out",
+            dir.join("t").to_str().unwrap(),
+        ],
+        "no results of --dataset phantom:sphere:61; the results hold phantom:",
+    );
 
     // An --out that names a file is said to be one, for sweep and merge alike.
     let file = dir.join("afile");

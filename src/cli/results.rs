@@ -131,7 +131,15 @@ impl ResultsArgs {
                 .iter()
                 .any(|l| l.get("dataset").and_then(|v| v.as_str()) == Some(d.as_str()))
         }) {
-            anyhow::bail!("{}: no results of --dataset {absent}", self.dir.display());
+            let held: std::collections::BTreeSet<&str> = lines
+                .iter()
+                .filter_map(|l| l.get("dataset").and_then(|v| v.as_str()))
+                .collect();
+            anyhow::bail!(
+                "{}: no results of --dataset {absent}; the results hold {}",
+                self.dir.display(),
+                held.into_iter().collect::<Vec<_>>().join(", ")
+            );
         }
         lines.retain(|l| {
             let frame_kept = l
