@@ -491,6 +491,12 @@ pub fn apply_mode(base: &HardwareConfig, mode: &Mode, tf: &str) -> HardwareConfi
     config
 }
 
+/// Whether a ranked mode's predicted frame rate is only an upper bound (leap values: their
+/// cost is a lower bound, docs/advise.md "Leap values").
+fn upper_bound(mode: &str) -> bool {
+    mode.split('+').any(|t| t == "leapvalues")
+}
+
 fn label(mode: &Mode) -> String {
     if mode.distance_bits > 0 {
         format!("distance {} bits", mode.distance_bits)
@@ -1093,9 +1099,10 @@ pub fn advice_text(advice: &Advice) -> String {
     for (i, c) in advice.ranking.iter().enumerate() {
         let _ = writeln!(
             text,
-            "| {} | {}{} | {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            "| {} | {}{}{} | {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} |",
             i + 1,
             c.label,
+            if upper_bound(&c.mode) { " †" } else { "" },
             if c.mode == advice.recommended {
                 " ◀ recommended"
             } else {
@@ -1113,6 +1120,14 @@ pub fn advice_text(advice: &Advice) -> String {
             c.samples / 1e6,
             c.predicted_fps,
             c.speedup_over_ert
+        );
+    }
+    if advice.ranking.iter().any(|c| upper_bound(&c.mode)) {
+        let _ = writeln!(
+            text,
+            "\n† an upper bound: the cost model does not count the row each leap lands in \
+             (the cycle model measured 1.3–2.7 cycles per step for leap values; docs/advise.md, \
+             \"Leap values\")"
         );
     }
     let r = advice.recommended();

@@ -323,6 +323,43 @@ fn cli_prints_the_ranking_and_json() {
     assert!(v["seconds"].as_f64().unwrap() >= 0.0);
 }
 
+/// Leap values' predicted frame rate is an upper bound (their cost model leaves out the row each
+/// leap lands in): the table marks their row and says so; maps alone have no mark.
+#[test]
+fn leap_values_are_marked_an_upper_bound() {
+    let exe = env!("CARGO_BIN_EXE_vizsim");
+    let advise = |structures: &str| {
+        let out = Command::new(exe)
+            .args([
+                "advise",
+                "--dataset",
+                "phantom:shells:32",
+                "--size",
+                "32x32",
+                "--views",
+                "1",
+                "--structures",
+                structures,
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let with = advise("map,leap-values");
+    assert!(
+        with.contains("| leap values † | ert+leapvalues |"),
+        "{with}"
+    );
+    assert!(with.contains("† an upper bound"), "{with}");
+    let without = advise("map");
+    assert!(!without.contains('†'), "{without}");
+}
+
 #[test]
 fn a_table_is_validated_against_its_own_frame_rates() {
     // Frame rates made up so that the truth is known: 8³ + hierarchy is the best that fits.

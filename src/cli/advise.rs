@@ -222,6 +222,14 @@ fn validate(args: &AdviseArgs, dir: &std::path::Path) -> Result<()> {
     let validation = if table {
         // A table of mean frame rates (the protocol's cycle-fps.csv): the advisor runs with
         // --size, --views and the hardware options, which the table cannot say.
+        if args.size.is_none() {
+            // A sweep at another size reads as an advisor far off (96x96 runs: 86 % "off").
+            vizsim::note!(
+                "note: {} does not record the image size of its runs: the advice is for \
+                 {DEFAULT_SIZE} (the paper protocol's); give --size WxH for runs made at another",
+                dir.display()
+            );
+        }
         advise::validate_table(
             dir,
             data_dir.as_deref(),
