@@ -522,8 +522,7 @@ fn bad_block_sizes_give_clear_errors() {
     render(&volume, "class", Model::Cycle, &blocked(16, &[]));
     // An odd dimension: no power of two divides it, and the error does not ask for one.
     let e = vizsim::blocking::check_block_size(32, [103, 94, 161])
-        .err()
-        .expect("rejected")
+        .expect_err("rejected")
         .to_string();
     assert!(
         e.contains("no block size does") && !e.contains("use a block size"),
