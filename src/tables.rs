@@ -276,27 +276,42 @@ pub fn mode_label(mode: &str) -> String {
 fn sort_key(field: &str, text: &str) -> (i64, String) {
     match field {
         "mode" => {
+            let tokens = || text.split('+');
+            let number = |prefix: &str| -> Option<i64> {
+                tokens().find_map(|t| t.strip_prefix(prefix)?.parse().ok())
+            };
+            // The base mode: none, ERT, then occupancy maps by sub-cube size, distance volumes
+            // by bits, leap values (empty before homogeneous); with and without the hierarchy
+            // and ERT next to each other.
+            let structure: Option<i64> = if tokens().any(|t| t == "leapvalues") {
+                Some(2000)
+            } else if tokens().any(|t| t == "leapvalues-homogeneous") {
+                Some(2001)
+            } else if let Some(bits) = number("distance") {
+                Some(1000 + bits)
+            } else {
+                number("leap")
+            };
+            let base = match structure {
+                None if tokens().any(|t| t == "ert") => 1,
+                None => 0,
+                Some(size) => {
+                    10 + size * 4
+                        + text.contains("hier") as i64
+                        + 2 * (!text.contains("ert")) as i64
+                }
+            };
+            // Then its variants right after it: bounding bricks by size (the table version
+            // after each), then iso mode by refinement steps.
+            let variant = match (number("bricks"), number("iso")) {
+                (_, Some(steps)) => 1000 + steps,
+                (Some(bricks), None) => 1 + 2 * bricks + tokens().any(|t| t == "table") as i64,
+                (None, None) => 0,
+            };
             let rank = if text == "none" {
                 0
-            } else if text == "ert" {
-                1
             } else {
-                // Occupancy maps by sub-cube size, then distance volumes by bits, then leap
-                // values (empty before homogeneous).
-                let tokens = || text.split('+');
-                let size: i64 = if tokens().any(|t| t == "leapvalues") {
-                    2000
-                } else if tokens().any(|t| t == "leapvalues-homogeneous") {
-                    2001
-                } else if let Some(bits) = tokens().find_map(|t| t.strip_prefix("distance")) {
-                    1000 + bits.parse::<i64>().unwrap_or(0)
-                } else {
-                    tokens()
-                        .find_map(|t| t.strip_prefix("leap"))
-                        .and_then(|n| n.parse().ok())
-                        .unwrap_or(999)
-                };
-                10 + size * 4 + text.contains("hier") as i64 + 2 * (!text.contains("ert")) as i64
+                base * 10_000 + variant
             };
             (rank, text.to_string())
         }
@@ -1185,5 +1200,27 @@ mod tests {
         sorted.sort_by_key(|m| sort_key("mode", m));
         assert_eq!(sorted, modes);
         assert_eq!(mode_label("ert+octree"), "ert+octree");
+        // Bricks and iso variants follow their base mode, bricks by size, not as text (the
+        // ray start/end tables read `ERT+bricks16 | ERT+bricks32 | ERT+bricks8`, after 8³).
+        let variants = [
+            "none",
+            "bricks16",
+            "ert",
+            "ert+bricks8",
+            "ert+bricks16",
+            "ert+bricks16+table",
+            "ert+bricks32",
+            "ert+iso0",
+            "ert+iso6",
+            "ert+leap4+bricks8",
+            "ert+leap8",
+            "ert+leap8+bricks16",
+            "ert+leap8+iso0",
+            "ert+leap16+hier",
+        ];
+        let mut sorted = variants.to_vec();
+        sorted.reverse();
+        sorted.sort_by_key(|m| sort_key("mode", m));
+        assert_eq!(sorted, variants);
     }
 }
