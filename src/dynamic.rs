@@ -409,11 +409,10 @@ impl Sequence {
             }
             if steps > files.len() {
                 return Err(Error::Invalid(format!(
-                    "time step {} out of range: the folder {source} holds {} time steps \
-                     (0..={})",
-                    steps - 1,
+                    "{steps} time steps asked for, but the folder {source} holds {}: ask for at \
+                     most {} (`vizsim sequence --steps`, or the experiment's steps)",
                     files.len(),
-                    files.len() - 1
+                    files.len()
                 )));
             }
             // Every time step the sequence will read has the first one's size, checked from the

@@ -331,7 +331,7 @@ fn bad_input_gives_clear_errors() {
     // More steps than the folder holds.
     let e = err(&source, 3);
     assert!(
-        e.contains("time step 2 out of range") && e.contains("holds 2"),
+        e.contains("3 time steps asked for") && e.contains("holds 2") && e.contains("--steps"),
         "{e}"
     );
     let _ = std::fs::remove_dir_all(&dir);

@@ -31,7 +31,8 @@ pub struct SequenceArgs {
     /// exact) or none (no leaping).
     #[arg(long, default_value = "during-update", value_parser = MapMode::parse)]
     map: MapMode,
-    /// Transfer function: `zero`, `class`, a preset name, or a TOML file.
+    /// Transfer function: `zero`, `class` (the phantoms' own), a preset name, or a TOML file.
+    /// A folder of time steps has no `class` preset: give `zero`, a preset or a file.
     #[arg(long, default_value = "class")]
     tf: String,
     /// `front`, `orbit:K/N` or `path:FILE:K/N` (a camera path, docs/model.md).
