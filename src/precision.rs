@@ -201,10 +201,25 @@ pub fn provenance(made_by: &str, hardware_changes: &[String]) -> String {
     format!("Made by `{made_by}` with {hardware}.")
 }
 
+/// The file stem of a dataset's report: its name as a plain file name in the output folder
+/// (`figures::file_safe`: no path separator, so never a path that leaves the folder, whatever a
+/// descriptor's `name` says), without leading dots or dashes (no hidden file, no name that reads
+/// as an option); `dataset` when nothing is left.
+pub fn report_stem(dataset: &str) -> String {
+    let safe = crate::figures::file_safe(dataset);
+    match safe.trim_start_matches(['.', '-']) {
+        "" => "dataset".to_string(),
+        stem => stem.to_string(),
+    }
+}
+
 /// Writes `<stem>.csv`, `<stem>.md`, `<stem>.json`, and the charts `<stem>-psnr`,
-/// `<stem>-max-error` and `<stem>-steps` (PNG and SVG). Returns the files written.
+/// `<stem>-max-error` and `<stem>-steps` (PNG and SVG), `<stem>` the dataset's `report_stem`,
+/// all in `out_dir`. Returns the files written.
 pub fn write_report(report: &PrecisionReport, out_dir: &Path) -> Result<Vec<PathBuf>> {
-    let stem = out_dir.join(report.dataset.replace(':', "-"));
+    let stem = report_stem(&report.dataset);
+    // Appended, not `with_extension`: a dataset name with a dot keeps all of it.
+    let file = |ending: &str| out_dir.join(format!("{stem}{ending}"));
     let mut written = Vec::new();
     let mut csv = String::from(
         "dataset,field,bits,max_abs_error_r,max_abs_error_g,max_abs_error_b,max_abs_error_a,mean_abs_error,psnr_db,pixels_over_1_lsb,bound_max_r,bound_max_g,bound_max_b,bound_mean,channels_over_bound\n",
@@ -232,7 +247,7 @@ pub fn write_report(report: &PrecisionReport, out_dir: &Path) -> Result<Vec<Path
             c.pixels_over_1_lsb
         );
     }
-    let path = stem.with_extension("csv");
+    let path = file(".csv");
     crate::output::write_atomically(&path, |w| std::io::Write::write_all(w, csv.as_bytes()))?;
     written.push(path);
 
@@ -287,10 +302,10 @@ pub fn write_report(report: &PrecisionReport, out_dir: &Path) -> Result<Vec<Path
             }
         );
     }
-    let path = stem.with_extension("md");
+    let path = file(".md");
     crate::output::write_atomically(&path, |w| std::io::Write::write_all(w, md.as_bytes()))?;
     written.push(path);
-    let path = stem.with_extension("json");
+    let path = file(".json");
     crate::output::write_json(&path, report)?;
     written.push(path);
 
@@ -333,9 +348,8 @@ pub fn write_report(report: &PrecisionReport, out_dir: &Path) -> Result<Vec<Path
         ),
     ];
     for (suffix, chart) in charts {
-        let s = out_dir.join(format!("{}-{suffix}", report.dataset.replace(':', "-")));
-        chart.write(&s)?;
-        written.push(s.with_extension("png"));
+        chart.write(&file(&format!("-{suffix}")))?;
+        written.push(file(&format!("-{suffix}.png")));
     }
     let cost_title = format!(
         "{}: skip widths vs steps ({LEAP_SUBCUBE}³ sub-cubes)",
@@ -359,8 +373,7 @@ pub fn write_report(report: &PrecisionReport, out_dir: &Path) -> Result<Vec<Path
             })
             .collect(),
     };
-    let s = out_dir.join(format!("{}-steps", report.dataset.replace(':', "-")));
-    cost_chart.write(&s)?;
-    written.push(s.with_extension("png"));
+    cost_chart.write(&file("-steps"))?;
+    written.push(file("-steps.png"));
     Ok(written)
 }

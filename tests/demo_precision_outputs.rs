@@ -1,0 +1,123 @@
+//! Where `demo` and `precision` write, and what they check before working: the demo leaves
+//! results it does not own alone (another experiment's, or a folder a sweep is writing into),
+//! bounds its frames, and both refuse an `--out` that is a file before any work; `precision`
+//! writes only inside its `--out`, whatever a descriptor's `name` says.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn vizsim(args: &[&str], cwd: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args(args)
+        .current_dir(cwd)
+        .env_remove("VIZSIM_DATA")
+        .output()
+        .expect("run vizsim")
+}
+
+fn text(out: &Output) -> (String, String) {
+    (
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!(
+        "vizsim-demo-precision-{}-{name}",
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Every file under `dir`, relative to it, sorted.
+fn files_under(dir: &Path) -> Vec<PathBuf> {
+    let mut found = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                found.push(path.strip_prefix(dir).unwrap().to_path_buf());
+            }
+        }
+    }
+    found.sort();
+    found
+}
+
+/// A descriptor of an 8³ raw volume whose `name` is `name`.
+fn descriptor(dir: &Path, file: &str, name: &str) -> PathBuf {
+    let vol = dir.join("vol");
+    std::fs::create_dir_all(&vol).unwrap();
+    let voxels: Vec<u8> = (0..512u32).map(|i| (i * 37 % 251) as u8).collect();
+    std::fs::write(vol.join("x_8x8x8_uint8.raw"), voxels).unwrap();
+    let path = vol.join(file);
+    std::fs::write(
+        &path,
+        format!("name = {name:?}\nfile = \"x_8x8x8_uint8.raw\"\n"),
+    )
+    .unwrap();
+    path
+}
+
+#[test]
+fn precision_writes_only_inside_its_out_whatever_the_dataset_is_named() {
+    let dir = scratch("names");
+    let absolute = dir.join("abs").join("x");
+    for (file, name, stem) in [
+        ("up.toml", "../../escaped".to_string(), "escaped"),
+        (
+            "abs.toml",
+            absolute.to_str().unwrap().to_string(),
+            "", // checked below: no file under abs/
+        ),
+        ("dots.toml", "..".to_string(), "dataset"),
+    ] {
+        let desc = descriptor(&dir, file, &name);
+        let out_dir = dir.join("a/b/prn");
+        let _ = std::fs::remove_dir_all(dir.join("a"));
+        let out = vizsim(
+            &[
+                "precision",
+                "--dataset",
+                desc.to_str().unwrap(),
+                "--tf",
+                "zero",
+                "--size",
+                "8x8",
+                "--out",
+                "a/b/prn",
+            ],
+            &dir,
+        );
+        let (stdout, stderr) = text(&out);
+        assert!(out.status.success(), "{name}: {stdout}\n{stderr}");
+        let written = files_under(&dir.join("a"));
+        assert!(
+            written.iter().all(|p| p.starts_with("b/prn")),
+            "{name}: written outside --out: {written:?}"
+        );
+        assert!(
+            !dir.join("abs").exists(),
+            "{name}: wrote at its absolute name"
+        );
+        let in_out = files_under(&out_dir);
+        assert_eq!(in_out.len(), 9, "{name}: {in_out:?}");
+        for path in &in_out {
+            let file = path.to_str().unwrap();
+            assert!(!file.starts_with('.'), "{name}: a hidden file {file}");
+            if !stem.is_empty() {
+                assert!(file.starts_with(stem), "{name}: {file}");
+            }
+        }
+        for line in stdout.lines().filter(|l| l.starts_with("wrote ")) {
+            let path = Path::new(line.trim_start_matches("wrote "));
+            assert!(dir.join(path).is_file(), "{name}: {line}");
+        }
+    }
+}
