@@ -121,3 +121,64 @@ fn precision_writes_only_inside_its_out_whatever_the_dataset_is_named() {
         }
     }
 }
+
+#[test]
+fn precision_checks_its_out_before_the_sweep_and_leaves_no_folder() {
+    let dir = scratch("out");
+    std::fs::write(dir.join("a.png"), b"not a folder").unwrap();
+    let out = vizsim(
+        &[
+            "precision",
+            "--dataset",
+            "phantom:shells:16",
+            "--tf",
+            "zero",
+            "--size",
+            "8x8",
+            "--out",
+            "a.png",
+        ],
+        &dir,
+    );
+    let (stdout, stderr) = text(&out);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("a.png: is a file, not a folder (--out names a folder)"),
+        "{stderr}"
+    );
+    assert!(
+        !stdout.contains(" in "),
+        "refused before the sweep: {stdout}"
+    );
+    assert_eq!(std::fs::read(dir.join("a.png")).unwrap(), b"not a folder");
+
+    // A folder under a file cannot be made: said before the sweep, and nothing is left.
+    let out = vizsim(
+        &[
+            "precision",
+            "--dataset",
+            "phantom:shells:16",
+            "--tf",
+            "zero",
+            "--size",
+            "8x8",
+            "--out",
+            "a.png/prn",
+        ],
+        &dir,
+    );
+    let (stdout, stderr) = text(&out);
+    assert!(!out.status.success());
+    assert!(stderr.contains("--out a.png/prn"), "{stderr}");
+    assert!(
+        !stdout.contains(" in "),
+        "refused before the sweep: {stdout}"
+    );
+    // A precision that fails on its dataset leaves no new folder.
+    let out = vizsim(
+        &["precision", "--dataset", "nope-no-such", "--out", "new/prn"],
+        &dir,
+    );
+    assert!(!out.status.success());
+    assert!(!dir.join("new").exists(), "{}", text(&out).1);
+}

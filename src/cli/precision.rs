@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Args;
 use vizsim::run::Model;
 
@@ -75,10 +75,19 @@ pub fn run(args: PrecisionArgs) -> Result<()> {
          leaping: --subcube, --hierarchy, --occupancy, --bricks (or occupancy.subcube, \
          occupancy.hierarchy and bricks.size in the configuration) do not apply"
     );
+    // The output folder before the sweep (it was found unwritable only after it).
+    vizsim::experiment::store::must_be_a_folder(&args.out)?;
+    vizsim::output::check_folder_writable(&args.out)
+        .with_context(|| format!("--out {}", args.out.display()))?;
+    // A failed precision leaves no new empty folder.
+    vizsim::output::removing_new_folder_on_error(&args.out, || sweep_and_write(&args, &base))
+}
+
+fn sweep_and_write(args: &PrecisionArgs, base: &vizsim::run::RunDescription) -> Result<()> {
     println!("{}", args.hardware.resolved_line(&base.hardware));
     let volume = args.data.load(&args.dataset)?;
     let start = Instant::now();
-    let mut report = vizsim::precision::sweep(&base, &volume)?;
+    let mut report = vizsim::precision::sweep(base, &volume)?;
     report.made_by = super::invocation();
     // The tables, the JSON and the charts together or none (a failed run must not look done).
     let written =
