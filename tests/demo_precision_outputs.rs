@@ -182,3 +182,120 @@ fn precision_checks_its_out_before_the_sweep_and_leaves_no_folder() {
     assert!(!out.status.success());
     assert!(!dir.join("new").exists(), "{}", text(&out).1);
 }
+/// A small sweep of an experiment named `name` into `out` (a second or so).
+fn small_sweep(cwd: &Path, name: &str, out: &str) {
+    let file = cwd.join(format!("{name}.toml"));
+    std::fs::write(
+        &file,
+        format!(
+            "name = \"{name}\"\ndatasets = [\"phantom:metaballs:16\"]\ntf = [\"class\"]\n\
+             modes = [\"none\"]\nmodels = [\"step\"]\n\n[frames]\norbit = 4\nselect = [0]\n\
+             size = \"8x8\"\n"
+        ),
+    )
+    .unwrap();
+    let swept = vizsim(
+        &["sweep", file.to_str().unwrap(), "--out", out, "--quiet"],
+        cwd,
+    );
+    assert!(swept.status.success(), "{}", text(&swept).1);
+}
+
+#[test]
+fn demo_leaves_another_experiments_results_alone_and_says_so_before_rendering() {
+    let dir = scratch("other-experiment");
+    std::fs::create_dir_all(dir.join("empty")).unwrap();
+    small_sweep(&dir, "exp2", "demoW/quick");
+    let before = std::fs::read(dir.join("demoW/quick/results.jsonl")).unwrap();
+    let out = vizsim(
+        &[
+            "demo",
+            "--frames",
+            "1",
+            "--out",
+            "demoW",
+            "--data-dir",
+            "empty",
+            "--threads",
+            "1",
+        ],
+        &dir,
+    );
+    let (stdout, stderr) = text(&out);
+    assert!(!out.status.success(), "{stdout}");
+    assert!(
+        stderr.contains("demo --out demoW")
+            && stderr.contains("demoW/quick")
+            && stderr.contains("experiment `exp2`")
+            && stderr.contains("another --out"),
+        "{stderr}"
+    );
+    assert!(!stdout.contains("they are removed"), "{stdout}");
+    assert_eq!(
+        std::fs::read(dir.join("demoW/quick/results.jsonl")).unwrap(),
+        before,
+        "exp2's results are kept"
+    );
+    assert!(dir.join("demoW/quick/timing.jsonl").is_file());
+    // Refused before anything was rendered.
+    assert!(!dir.join("demoW/orbit-phantom-metaballs-64.png").exists());
+}
+
+#[test]
+fn demo_keeps_its_own_results_and_waits_for_no_sweep_writing_into_its_folder() {
+    let dir = scratch("locked");
+    std::fs::create_dir_all(dir.join("empty")).unwrap();
+    let demo = |dir: &Path| {
+        vizsim(
+            &[
+                "demo",
+                "--frames",
+                "1",
+                "--out",
+                "demo",
+                "--data-dir",
+                "empty",
+                "--threads",
+                "1",
+            ],
+            dir,
+        )
+    };
+    let first = demo(&dir);
+    assert!(first.status.success(), "{}", text(&first).1);
+    let results = dir.join("demo/quick/results.jsonl");
+    let own = std::fs::read(&results).unwrap();
+    // A sweep (of a newer version of the quick experiment) writing into the folder: it holds
+    // the lock and has appended a run the demo does not know.
+    let lock = vizsim::experiment::store::lock_folder(&dir.join("demo/quick")).unwrap();
+    let mut line: serde_json::Value =
+        serde_json::from_str(String::from_utf8_lossy(&own).lines().next().unwrap()).unwrap();
+    line["key"] = "a-run-of-a-newer-version".into();
+    let mut newer = own.clone();
+    newer.extend_from_slice(format!("{line}\n").as_bytes());
+    std::fs::write(&results, &newer).unwrap();
+    let orbit = dir.join("demo/orbit-phantom-metaballs-64.png");
+    std::fs::remove_file(&orbit).unwrap();
+    let locked = demo(&dir);
+    let (stdout, stderr) = text(&locked);
+    assert!(!locked.status.success(), "{stdout}");
+    assert!(
+        stderr.contains("demo/quick") && stderr.contains("another sweep is writing"),
+        "{stderr}"
+    );
+    assert!(!stdout.contains("they are removed"), "{stdout}");
+    assert_eq!(
+        std::fs::read(&results).unwrap(),
+        newer,
+        "the sweep's results"
+    );
+    assert!(!orbit.exists(), "refused before rendering");
+    drop(lock);
+    // Its own results, still valid, are kept by a re-run.
+    std::fs::write(&results, &own).unwrap();
+    let again = demo(&dir);
+    let (stdout, stderr) = text(&again);
+    assert!(again.status.success(), "{stderr}");
+    assert!(!stdout.contains("they are removed"), "{stdout}");
+    assert_eq!(std::fs::read(&results).unwrap(), own);
+}

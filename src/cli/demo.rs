@@ -33,6 +33,9 @@ pub struct DemoArgs {
 pub fn run(args: DemoArgs) -> Result<()> {
     let (out, frames) = (args.out.as_path(), args.frames);
     anyhow::ensure!(frames >= 1, "--frames must be at least 1");
+    // The quick experiment's folder, before anything renders.
+    let quick = out.join("quick");
+    check_quick_folder(out, &quick)?;
     let dir = args.data.dir()?;
     let mut orbit_sets = vec!["phantom:metaballs:64".to_string()];
     let mut gallery: Vec<String> = vizsim::volume::phantom::PhantomKind::ALL
@@ -130,7 +133,30 @@ pub fn run(args: DemoArgs) -> Result<()> {
             path.display()
         );
     }
-    quick_experiment(dir.as_deref(), &out.join("quick"))
+    quick_experiment(dir.as_deref(), out, &quick)
+}
+
+/// Refuses, before anything renders, a quick experiment folder the demo may not write into:
+/// one that holds another experiment's results, or one a sweep (or a merge) is writing into.
+fn check_quick_folder(out: &Path, quick: &Path) -> Result<()> {
+    use vizsim::experiment::store;
+    store::ResultStore::check_same_experiment(quick, QUICK_NAME)
+        .map_err(|e| quick_folder_taken(out, quick, e))?;
+    if quick.is_dir() {
+        // Taken and released: only to learn that no one holds it now.
+        drop(store::lock_folder(quick).map_err(|e| quick_folder_taken(out, quick, e))?);
+    }
+    Ok(())
+}
+
+/// The error for a quick experiment folder the demo may not write into (`e` says why).
+fn quick_folder_taken(out: &Path, quick: &Path, e: vizsim::error::Error) -> anyhow::Error {
+    anyhow::anyhow!(
+        "demo --out {}: its quick experiment goes into {}, and the demo leaves that folder \
+         alone (give demo another --out): {e}",
+        out.display(),
+        quick.display()
+    )
 }
 
 /// Virtual endoscopy: `frames` frames along the lumen of `phantom:tube:64`
@@ -234,12 +260,22 @@ fn dynamic_sequence(out: &Path, hardware: &HardwareConfig) -> Result<()> {
     Ok(())
 }
 
-/// The quick experiment (configs/experiments/quick.toml, embedded): sweep, tables and charts.
-/// Without the data folder its real datasets are left out.
-fn quick_experiment(data_dir: Option<&Path>, out: &Path) -> Result<()> {
+/// The quick experiment, embedded.
+const QUICK: &str = include_str!("../../configs/experiments/quick.toml");
+/// Its name (the `name` in `QUICK`, checked where it is read).
+const QUICK_NAME: &str = "quick";
+
+/// The quick experiment (configs/experiments/quick.toml, embedded) into `out` (`demo_out`'s
+/// quick folder): sweep, tables and charts. Without the data folder its real datasets are left
+/// out.
+fn quick_experiment(data_dir: Option<&Path>, demo_out: &Path, out: &Path) -> Result<()> {
     use vizsim::experiment::{self, spec};
-    const QUICK: &str = include_str!("../../configs/experiments/quick.toml");
     let mut file: spec::ExperimentFile = toml::from_str(QUICK)?;
+    anyhow::ensure!(
+        file.name == QUICK_NAME,
+        "configs/experiments/quick.toml: named `{}`, the demo expects `{QUICK_NAME}`",
+        file.name
+    );
     let mut left_out = Vec::new();
     file.datasets.retain(|d| {
         let present = dataset::load(d, data_dir).is_ok();
@@ -255,7 +291,13 @@ fn quick_experiment(data_dir: Option<&Path>, out: &Path) -> Result<()> {
         data_dir,
     )?;
     // The demo's own folder: results of an earlier version of the quick experiment (other
-    // defaults, other runs) are removed rather than mixed into its tables.
+    // defaults, other runs) are removed rather than mixed into its tables. Decided and done
+    // under the folder's lock (a sweep writing into it keeps its results), and never for
+    // another experiment's results. The lock is released before the sweep, which takes it.
+    let lock =
+        experiment::store::lock_folder(out).map_err(|e| quick_folder_taken(demo_out, out, e))?;
+    experiment::store::ResultStore::check_same_experiment(out, QUICK_NAME)
+        .map_err(|e| quick_folder_taken(demo_out, out, e))?;
     let results = out.join(experiment::store::RESULTS);
     let done = experiment::store::result_keys(&results)?;
     let mut runs: std::collections::HashSet<String> =
@@ -290,6 +332,7 @@ fn quick_experiment(data_dir: Option<&Path>, out: &Path) -> Result<()> {
             }
         }
     }
+    drop(lock);
     let summary = experiment::sweep(&expansion, out, None, None, false)?;
     println!(
         "quick experiment: {} runs in {:.1} s -> {}",
