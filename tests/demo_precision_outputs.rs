@@ -299,3 +299,43 @@ fn demo_keeps_its_own_results_and_waits_for_no_sweep_writing_into_its_folder() {
     assert!(!stdout.contains("they are removed"), "{stdout}");
     assert_eq!(std::fs::read(&results).unwrap(), own);
 }
+
+#[test]
+fn demo_frames_are_bounded_and_a_file_as_out_is_refused_up_front() {
+    let dir = scratch("frames");
+    let out = vizsim(
+        &[
+            "demo",
+            "--frames",
+            "99999999",
+            "--out",
+            "demo",
+            "--memory-budget",
+            "512M",
+        ],
+        &dir,
+    );
+    let (_, stderr) = text(&out);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("--frames 99999999: at most 3600"),
+        "{stderr}"
+    );
+    assert!(!dir.join("demo").exists(), "nothing made");
+
+    std::fs::write(dir.join("a.png"), b"not a folder").unwrap();
+    let start = std::time::Instant::now();
+    let out = vizsim(&["demo", "--frames", "1", "--out", "a.png"], &dir);
+    let (stdout, stderr) = text(&out);
+    assert!(!out.status.success(), "{stdout}");
+    assert!(
+        stderr.contains("a.png: is a file, not a folder (--out names a folder)"),
+        "{stderr}"
+    );
+    assert!(
+        !stdout.contains("orbit"),
+        "refused before rendering: {stdout}"
+    );
+    assert!(start.elapsed().as_secs() < 10);
+    assert_eq!(std::fs::read(dir.join("a.png")).unwrap(), b"not a folder");
+}

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Args;
 use vizsim::config::HardwareConfig;
 use vizsim::figures::{file_safe, tf_label};
@@ -21,10 +21,15 @@ pub struct DemoArgs {
     /// Output folder.
     #[arg(long, default_value = "reports/demo")]
     out: PathBuf,
-    /// Frames of the orbit (the published animation has 72, 5 degrees each).
+    /// Frames of the orbit (the published animation has 72, 5 degrees each; at most 3600,
+    /// a tenth of a degree each).
     #[arg(long, default_value_t = 72)]
     frames: u32,
 }
+
+/// The most orbit frames the demo renders: a tenth of a degree a frame (the edge of its
+/// 128×128 frames then moves about a tenth of a pixel), and a bound on the time an orbit takes.
+const MAX_FRAMES: u32 = 3600;
 
 /// Orbits of a phantom (and of fuel when the data folder holds it) as contact sheets, and a
 /// front-and-side gallery of every dataset with both of its transfer functions, all rendered
@@ -33,9 +38,23 @@ pub struct DemoArgs {
 pub fn run(args: DemoArgs) -> Result<()> {
     let (out, frames) = (args.out.as_path(), args.frames);
     anyhow::ensure!(frames >= 1, "--frames must be at least 1");
-    // The quick experiment's folder, before anything renders.
+    anyhow::ensure!(
+        frames <= MAX_FRAMES,
+        "--frames {frames}: at most {MAX_FRAMES} (a tenth of a degree a frame; the published \
+         orbit has 72)"
+    );
+    // The output folder and the quick experiment's folder in it, before anything renders.
+    vizsim::experiment::store::must_be_a_folder(out)?;
+    vizsim::output::check_folder_writable(out)
+        .with_context(|| format!("--out {}", out.display()))?;
     let quick = out.join("quick");
     check_quick_folder(out, &quick)?;
+    // A demo that fails before writing anything leaves no new empty folder.
+    vizsim::output::removing_new_folder_on_error(out, || render_all(&args, &quick))
+}
+
+fn render_all(args: &DemoArgs, quick: &Path) -> Result<()> {
+    let (out, frames) = (args.out.as_path(), args.frames);
     let dir = args.data.dir()?;
     let mut orbit_sets = vec!["phantom:metaballs:64".to_string()];
     let mut gallery: Vec<String> = vizsim::volume::phantom::PhantomKind::ALL
@@ -68,20 +87,21 @@ pub fn run(args: DemoArgs) -> Result<()> {
         };
         let prepared = run::prepare(&base, &volume)?;
         let start = Instant::now();
+        // Every frame is rendered (the orbit's time), only the sheet's 12 are kept.
+        let step = (frames / 12).max(1);
         let mut images = Vec::new();
         for k in 0..frames {
             let view = RunDescription {
                 view: format!("orbit:{k}/{frames}"),
                 ..base.clone()
             };
-            images.push(run::execute(&view, &prepared, Probes::default())?.frame);
+            let frame = run::execute(&view, &prepared, Probes::default())?.frame;
+            if k % step == 0 && images.len() < 12 {
+                images.push((k, frame));
+            }
         }
-        let step = (frames / 12).max(1) as usize;
         let picked: Vec<(&vizsim::render::Frame, Vec<String>)> = images
             .iter()
-            .enumerate()
-            .step_by(step)
-            .take(12)
             .map(|(k, image)| {
                 (
                     image,
@@ -133,7 +153,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
             path.display()
         );
     }
-    quick_experiment(dir.as_deref(), out, &quick)
+    quick_experiment(dir.as_deref(), out, quick)
 }
 
 /// Refuses, before anything renders, a quick experiment folder the demo may not write into:
