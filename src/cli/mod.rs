@@ -415,7 +415,8 @@ impl HardwareArgs {
 
 #[derive(clap::ValueEnum, Clone, Copy)]
 pub enum OccupancyArg {
-    /// The '0' map (any non-zero voxel); `0` is accepted too.
+    // The '0' map (any non-zero voxel): `0` is accepted too. (A `///` comment here would make
+    // clap list the values with their help, and lay out every option's help differently.)
     #[value(alias = "0")]
     Zero,
     Class,

@@ -14,7 +14,8 @@ use vizsim::camera::parse_image_size;
 pub struct SequenceArgs {
     /// The time steps: phantom:metaballs[:SIZE][:seed=N][:t=T0] (steps --dt apart),
     /// phantom:tsdf[:SIZE][:seed=N][:t=T0] (one depth image fused per step) or a folder of
-    /// .raw/.nrrd/.nhdr files of one size (file-name order).
+    /// .raw/.nrrd/.nhdr files of one size (file-name order; it has no `class` transfer
+    /// function: give --tf zero, a preset or a file).
     #[arg(long)]
     source: String,
     /// Number of time steps (step 0 downloads the whole volume).
@@ -31,8 +32,7 @@ pub struct SequenceArgs {
     /// exact) or none (no leaping).
     #[arg(long, default_value = "during-update", value_parser = MapMode::parse)]
     map: MapMode,
-    /// Transfer function: `zero`, `class` (the phantoms' own), a preset name, or a TOML file.
-    /// A folder of time steps has no `class` preset: give `zero`, a preset or a file.
+    /// Transfer function: `zero`, `class`, a preset name, or a TOML file.
     #[arg(long, default_value = "class")]
     tf: String,
     /// `front`, `orbit:K/N` or `path:FILE:K/N` (a camera path, docs/model.md).
