@@ -47,17 +47,74 @@ pub struct DepthImage {
 
 const DEPTH_MAGIC: &str = "VIZDEPTH";
 
+/// Longest header line read: `VIZDEPTH`, two numbers and the newline fit with room to spare.
+const HEADER_MAX: u64 = 64;
+
 impl DepthImage {
+    /// Reads a depth file: only a regular file (a FIFO or a device such as `/dev/zero` is
+    /// refused before it is read, as every input is: `input::open_regular`), and only after its
+    /// header is checked against the file's length and the memory budget
+    /// (`DepthImage::check_file`); then exactly the values the header announces.
     pub fn read(path: &Path) -> Result<DepthImage> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let (file, width, height) = Self::open_checked(path)?;
+        let expected = Self::values_bytes(width, height);
+        let mut body = Vec::with_capacity(expected as usize);
+        use std::io::Read;
+        file.take(expected)
+            .read_to_end(&mut body)
+            .map_err(|e| Error::io(path, e))?;
+        if body.len() as u64 != expected {
+            // The file shrank after its length was checked.
+            return Err(Error::format(
+                path,
+                format!(
+                    "{} bytes of depth values; a {width}x{height} image needs {expected} (4 per \
+                     pixel)",
+                    body.len()
+                ),
+            ));
+        }
+        let depth = body
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        Ok(DepthImage {
+            width,
+            height,
+            depth,
+        })
+    }
+
+    /// Checks a depth file without reading its values, and returns its image size (W, H):
+    /// a regular file whose header is valid, whose length is the header line and exactly
+    /// the W·H values it announces, and whose values fit the memory budget.
+    pub fn check_file(path: &Path) -> Result<(u32, u32)> {
+        Self::open_checked(path).map(|(_, w, h)| (w, h))
+    }
+
+    /// Bytes of the values of a W×H image (4 per pixel).
+    fn values_bytes(width: u32, height: u32) -> u64 {
+        width as u64 * height as u64 * 4
+    }
+
+    /// Opens a depth file, checks it as `check_file` says, and leaves it positioned at the
+    /// first value.
+    fn open_checked(path: &Path) -> Result<(std::fs::File, u32, u32)> {
+        use std::io::{Read, Seek};
+        let mut file = crate::input::open_regular(path)?;
+        let length = file.metadata().map_err(|e| Error::io(path, e))?.len();
+        let mut head = Vec::with_capacity(HEADER_MAX as usize);
+        (&mut file)
+            .take(HEADER_MAX)
+            .read_to_end(&mut head)
+            .map_err(|e| Error::io(path, e))?;
         let bad = |m: String| Error::format(path, m);
-        let line_end = bytes
+        let line_end = head
             .iter()
-            .take(64)
             .position(|&b| b == b'\n')
             .ok_or_else(|| bad(format!("no `{DEPTH_MAGIC} W H` header line")))?;
-        let header = std::str::from_utf8(&bytes[..line_end])
-            .map_err(|_| bad("header is not text".into()))?;
+        let header =
+            std::str::from_utf8(&head[..line_end]).map_err(|_| bad("header is not text".into()))?;
         let fields: Vec<&str> = header.split_whitespace().collect();
         let (w, h) = match fields.as_slice() {
             [magic, w, h] if *magic == DEPTH_MAGIC => (w.parse::<u32>(), h.parse::<u32>()),
@@ -71,23 +128,24 @@ impl DepthImage {
             return Err(bad(format!("header `{header}`: W and H must be integers")));
         };
         crate::camera::check_image_size(width, height).map_err(|e| bad(format!("header: {e}")))?;
-        let body = &bytes[line_end + 1..];
-        let expected = width as usize * height as usize * 4;
-        if body.len() != expected {
+        // The length the header announces, against the file's: a file of another length
+        // (truncated, padded, a huge sparse file) is refused before any value is read.
+        let values_at = line_end as u64 + 1;
+        let expected = Self::values_bytes(width, height);
+        let body = length.saturating_sub(values_at);
+        if body != expected {
             return Err(bad(format!(
-                "{} bytes of depth values; a {width}x{height} image needs {expected} (4 per pixel)",
-                body.len()
+                "{body} bytes of depth values; a {width}x{height} image needs {expected} (4 per \
+                 pixel)"
             )));
         }
-        let depth = body
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect();
-        Ok(DepthImage {
-            width,
-            height,
-            depth,
-        })
+        crate::budget::check(
+            &format!("the {width}x{height} depth image {}", path.display()),
+            expected,
+        )?;
+        file.seek(std::io::SeekFrom::Start(values_at))
+            .map_err(|e| Error::io(path, e))?;
+        Ok((file, width, height))
     }
 
     /// Writes the format `read` accepts, atomically.
@@ -168,7 +226,7 @@ impl Scene {
                 })
             }
             GeometryShape::DepthFile => Some(Geometry::Depth {
-                image: DepthImage::read(Path::new(&g.file))?,
+                image: DepthImage::read(Path::new(&g.file)).map_err(depth_file_error)?,
                 colour: g.colour,
             }),
         };
@@ -182,18 +240,22 @@ impl Scene {
     /// An error when a depth image does not match the rendered image's size.
     pub fn check_image_size(&self, width: u32, height: u32) -> Result<()> {
         if let Some(Geometry::Depth { image, .. }) = &self.geometry {
-            if (image.width, image.height) != (width, height) {
-                return Err(Error::config(
-                    "hardware configuration",
-                    "geometry.file",
-                    format!(
-                        "the depth image is {}x{}, the rendered image {width}x{height}; they must match",
-                        image.width, image.height
-                    ),
-                ));
-            }
+            check_depth_size((image.width, image.height), (width, height))?;
         }
         Ok(())
+    }
+
+    /// What `from_config` and `check_image_size` would refuse in a configuration's depth file
+    /// (`geometry.shape = "depth-file"`), checked without reading its values: the file is
+    /// there, a regular file, of the length its header announces, within the memory budget,
+    /// and of the rendered image's size. Nothing to check for other shapes.
+    pub fn check_depth_file(config: &HardwareConfig, size: (u32, u32)) -> Result<()> {
+        let g = &config.geometry;
+        if g.shape != GeometryShape::DepthFile {
+            return Ok(());
+        }
+        let image = DepthImage::check_file(Path::new(&g.file)).map_err(depth_file_error)?;
+        check_depth_size(image, size)
     }
 
     /// The kept sample range and the surface of the ray through pixel (px, py).
@@ -305,6 +367,44 @@ impl Scene {
                 Some((t, [colour[0], colour[1], colour[2], 1.0]))
             }
         }
+    }
+}
+
+/// An error when a depth image of `image` (W, H) does not match the rendered image's `size`.
+fn check_depth_size(image: (u32, u32), size: (u32, u32)) -> Result<()> {
+    if image != size {
+        return Err(Error::config(
+            "hardware configuration",
+            "geometry.file",
+            format!(
+                "the depth image is {}x{}, the rendered image {}x{}; they must match",
+                image.0, image.1, size.0, size.1
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// An error reading the depth file of `geometry.file`, naming the field: a file that is not
+/// there (or not readable) and a file over the memory budget as errors of the field, a file
+/// that is no depth image as an error of the file that says which field names it.
+fn depth_file_error(error: Error) -> Error {
+    let field = "geometry.file";
+    match error {
+        Error::Io { path, cause } => Error::config(
+            "hardware configuration",
+            field,
+            format!(
+                "{}: {cause}; give the path of a depth image (`{DEPTH_MAGIC} W H` header line, \
+                 then W·H little-endian f32 values)",
+                path.display()
+            ),
+        ),
+        Error::Format { path, message } => Error::format(
+            path,
+            format!("the depth image of field `{field}`: {message}"),
+        ),
+        other => Error::config("hardware configuration", field, other.to_string()),
     }
 }
 
