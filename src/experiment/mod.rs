@@ -260,17 +260,51 @@ fn append(store: &Mutex<ResultStore>, key: &str, line: &Value, wall_seconds: f64
         .append(key, line, wall_seconds)
 }
 
+/// A run of the sweep as errors name it: its key, then where it sits in the experiment
+/// (dataset, tf, mode, model, frame, image size, axis values: `store::describe_line`).
+fn describe_run(run: &RunSpec, experiment: &str) -> String {
+    let mut line = identity_line(run, experiment, "");
+    if let (Some(sample), Some(obj)) = (&run.run.sample, line.as_object_mut()) {
+        obj.insert("sample_rate".into(), json!(sample.rate));
+    }
+    format!("run {} ({})", run.key, store::describe_line(&line))
+}
+
+/// An error of one run of the sweep (preparing or executing it), naming the experiment file
+/// and the run; `also` says which other runs it stops (those that share its preparation).
+fn run_error(expansion: &Expansion, run: &RunSpec, also: &str, error: Error) -> Error {
+    Error::Invalid(format!(
+        "{}: {}{also}: {error}",
+        expansion.source,
+        describe_run(run, &expansion.experiment.name)
+    ))
+}
+
+/// The error a sweep stops with: what went wrong, then what the folder keeps (every result
+/// written, the failed run's included, stays in `results.jsonl`) and how to go on.
+fn stopped(error: Error, store: &Mutex<ResultStore>, out: &Path) -> Error {
+    let kept = store.lock().map(|s| s.len()).unwrap_or_default();
+    Error::Invalid(format!(
+        "{error}\nthe sweep stopped there; {} keeps the {kept} result{} written so far: fix \
+         the run (or leave it out with [[exclude]], docs/experiments.md) and sweep again into \
+         the same folder to run the rest",
+        out.join(store::RESULTS).display(),
+        if kept == 1 { "" } else { "s" },
+    ))
+}
+
 /// Runs the pending time steps of sequence experiments: each sequence (source, TF,
 /// configuration, view, map strategy) runs its frame loop from step 0 (a step depends on the
 /// memory the previous steps left), up to its last pending step, and appends the line of
 /// every pending step as the loop reaches it; steps already in the results are recomputed
 /// (the loop needs them) but not written again.
 fn sweep_sequences(
+    expansion: &Expansion,
     pending: &[&RunSpec],
     store: &Mutex<ResultStore>,
-    name: &str,
     bar: &indicatif::ProgressBar,
 ) -> Result<()> {
+    let name = &expansion.experiment.name;
     let mut groups: BTreeMap<String, Vec<&RunSpec>> = BTreeMap::new();
     let mut order = Vec::new();
     for run in pending {
@@ -306,14 +340,32 @@ fn sweep_sequences(
         };
         let clock = first.run.hardware.clock.frequency_mhz;
         let mut t = Instant::now();
-        run_sequence(&first.run, &step.source, &options, |view| {
+        // Writing a step's line is no error of the run: kept apart from the sequence's own.
+        let mut written: Result<()> = Ok(());
+        let outcome = run_sequence(&first.run, &step.source, &options, |view| {
             if let Some(run) = by_step.get(&view.report.step) {
-                let line = step_line(run, view, name, clock)?;
-                append(store, &run.key, &line, t.elapsed().as_secs_f64())?;
+                written = step_line(run, view, name, clock)
+                    .and_then(|line| append(store, &run.key, &line, t.elapsed().as_secs_f64()));
+                written
+                    .as_ref()
+                    .map_err(|e| Error::Invalid(e.to_string()))?;
                 bar.inc(1);
             }
             t = Instant::now();
             Ok(())
+        });
+        written?;
+        outcome.map_err(|e| {
+            run_error(
+                expansion,
+                first,
+                &format!(
+                    ", the sequence of its {} time step{}",
+                    runs.len(),
+                    if runs.len() == 1 { "" } else { "s" }
+                ),
+                e,
+            )
         })?;
         Ok(())
     })
@@ -407,7 +459,7 @@ pub fn sweep(
     let store = Mutex::new(store);
     let name = &expansion.experiment.name;
     if expansion.experiment.sequence.is_some() {
-        sweep_sequences(&pending, &store, name, &bar)?;
+        sweep_sequences(expansion, &pending, &store, &bar).map_err(|e| stopped(e, &store, out))?;
         bar.finish_and_clear();
         summary.ran = pending.len();
         summary.wall_seconds = start.elapsed().as_secs_f64();
@@ -415,18 +467,34 @@ pub fn sweep(
     }
     let reuse = TimingReuse::default();
     learn_finished(expansion, out, &finished, &reuse)?;
-    order.par_iter().try_for_each(|g| -> Result<()> {
-        let runs = &groups[g];
-        let volume = &expansion.volumes[&runs[0].run.dataset];
-        let prepared = run::prepare(&runs[0].run, volume)?;
-        runs.par_iter().try_for_each(|run| -> Result<()> {
-            let t = Instant::now();
-            let line = reuse.run_frame(run, &prepared, name)?;
-            append(&store, &run.key, &line, t.elapsed().as_secs_f64())?;
-            bar.inc(1);
-            Ok(())
+    order
+        .par_iter()
+        .try_for_each(|g| -> Result<()> {
+            let runs = &groups[g];
+            let volume = &expansion.volumes[&runs[0].run.dataset];
+            // Preparing fails for every frame of the group alike: named by its first.
+            let prepared = run::prepare(&runs[0].run, volume).map_err(|e| {
+                let others = runs.len() - 1;
+                let also = match others {
+                    0 => String::new(),
+                    n => format!(
+                        " and the {n} other frame{} prepared with it",
+                        if n == 1 { "" } else { "s" }
+                    ),
+                };
+                run_error(expansion, runs[0], &also, e)
+            })?;
+            runs.par_iter().try_for_each(|run| -> Result<()> {
+                let t = Instant::now();
+                let line = reuse
+                    .run_frame(run, &prepared, name)
+                    .map_err(|e| run_error(expansion, run, "", e))?;
+                append(&store, &run.key, &line, t.elapsed().as_secs_f64())?;
+                bar.inc(1);
+                Ok(())
+            })
         })
-    })?;
+        .map_err(|e| stopped(e, &store, out))?;
     bar.finish_and_clear();
     summary.ran = pending.len();
     summary.timings_reused = reuse.reused.into_inner();

@@ -312,6 +312,36 @@ pub fn experiment_name(dir: &Path) -> Result<Option<String>> {
         .and_then(|v| v["experiment"]["name"].as_str().map(str::to_string)))
 }
 
+/// A run as messages name it, from its result line (or its identity: the first fields of
+/// one): `fuel, tf class, mode ert, step model, frame 3, 256×256, memory.cl = 3`, with its
+/// axis values and sampling rate.
+pub fn describe_line(line: &Value) -> String {
+    let text = |f: &str| crate::tables::field_text(line, f).unwrap_or_default();
+    let axes = line
+        .get("axes")
+        .and_then(Value::as_object)
+        .map(|a| {
+            a.iter()
+                .map(|(k, v)| format!(", {k} = {v}"))
+                .collect::<String>()
+        })
+        .unwrap_or_default();
+    let sampled = line
+        .get("sample_rate")
+        .map(|r| format!(", sampled at {r}"))
+        .unwrap_or_default();
+    format!(
+        "{}, tf {}, mode {}, {} model, frame {}, {}×{}{axes}{sampled}",
+        text("dataset"),
+        text("tf"),
+        text("mode"),
+        text("model"),
+        text("frame"),
+        text("width"),
+        text("height")
+    )
+}
+
 pub struct ResultStore {
     dir: PathBuf,
     keys: HashSet<String>,
@@ -440,32 +470,7 @@ impl ResultStore {
             return Ok(());
         }
         let example = first_line_where(&dir.join(RESULTS), |key| !is_run(key))?
-            .map(|line| {
-                let text = |f: &str| crate::tables::field_text(&line, f).unwrap_or_default();
-                let axes = line
-                    .get("axes")
-                    .and_then(Value::as_object)
-                    .map(|a| {
-                        a.iter()
-                            .map(|(k, v)| format!(", {k} = {v}"))
-                            .collect::<String>()
-                    })
-                    .unwrap_or_default();
-                let sampled = line
-                    .get("sample_rate")
-                    .map(|r| format!(", sampled at {r}"))
-                    .unwrap_or_default();
-                format!(
-                    " (e.g. {}, tf {}, mode {}, {} model, frame {}, {}×{}{axes}{sampled})",
-                    text("dataset"),
-                    text("tf"),
-                    text("mode"),
-                    text("model"),
-                    text("frame"),
-                    text("width"),
-                    text("height")
-                )
-            })
+            .map(|line| format!(" (e.g. {})", describe_line(&line)))
             .unwrap_or_default();
         Err(Error::Invalid(format!(
             "{}: {foreign} of its {} results are not runs of the experiment as its file now \
