@@ -1,7 +1,13 @@
-//! A run that fails during the sweep is named (file, key, dataset, tf, mode, model, frame,
-//! axis values), and the results written before it are kept.
+//! Runs that fail on their dataset: what preparing a run refuses on the volume (an iso value
+//! outside its densities, a block size that does not divide it, a depth file that is missing,
+//! not a file or of the wrong size) is refused when the experiment is validated, dry run or
+//! not, before the sweep writes anything, naming the experiment file, the axis and the value.
+//! A run that still fails during the sweep is named (file, key, dataset, tf, mode, model,
+//! frame, axis values), and the results written before it are kept.
 
 use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
 
 use vizsim::clip::DepthImage;
 use vizsim::experiment::{self, spec};
@@ -14,6 +20,38 @@ fn scratch(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
+}
+
+/// Runs vizsim in `dir`, killing it after 30 s (a hang is a failure); returns whether it
+/// succeeded and its stderr.
+fn run_bounded(dir: &Path, args: &[&str]) -> (bool, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args(args)
+        .current_dir(dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run vizsim");
+    let start = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            let mut stderr = String::new();
+            use std::io::Read;
+            child
+                .stderr
+                .take()
+                .unwrap()
+                .read_to_string(&mut stderr)
+                .unwrap();
+            return (status.success(), stderr);
+        }
+        if start.elapsed() > Duration::from_secs(30) {
+            child.kill().unwrap();
+            let _ = child.wait();
+            panic!("{args:?} hung for 30 s");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
 }
 
 /// An experiment on a 16³ phantom, 8×8 frames, with `modes` and the `[axes]` lines `axes`.
@@ -31,6 +69,118 @@ size = "8x8"
 {axes}
 "#
     )
+}
+
+/// The experiment `text`, written to `dir/FILE`, must be refused by `sweep --dry-run` and by
+/// `sweep` alike, with every needle in the message and no sweep folder made.
+fn refused_before_writing(dir: &Path, file: &str, text: &str, needles: &[&str]) {
+    std::fs::write(dir.join(file), text).unwrap();
+    let out = format!("{file}.out");
+    for dry in [true, false] {
+        let mut args = vec!["sweep", file, "--out", &out, "--quiet"];
+        if dry {
+            args.push("--dry-run");
+        }
+        let (ok, stderr) = run_bounded(dir, &args);
+        assert!(!ok, "{args:?} succeeded");
+        assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
+        for n in needles {
+            assert!(stderr.contains(n), "{args:?}: stderr lacks {n:?}: {stderr}");
+        }
+        assert!(
+            !dir.join(&out).exists(),
+            "{args:?}: the sweep folder was made"
+        );
+    }
+}
+
+#[test]
+fn an_iso_value_outside_the_dataset_is_refused_before_the_sweep() {
+    let dir = scratch("iso");
+    // The mixed sweep of the review: 8 frames of iso.value 100, 8 of 60000 (the phantom's
+    // densities are 0..=245). It wrote the first half, then stopped.
+    refused_before_writing(
+        &dir,
+        "iso.toml",
+        &experiment("iso", r#""iso2""#, r#""iso.value" = [100, 60000]"#),
+        &[
+            "iso.toml",
+            r#"field `axes."iso.value"`"#,
+            "iso.value=60000",
+            "outside the densities of dataset `phantom:sphere:16`",
+            "[[exclude]]",
+        ],
+    );
+    // Excluding the value makes it a valid experiment.
+    let text = experiment("iso", r#""iso2""#, r#""iso.value" = [100, 60000]"#)
+        + "[[exclude]]\n\"iso.value\" = 60000\n";
+    std::fs::write(dir.join("ok.toml"), text).unwrap();
+    let (ok, stderr) = run_bounded(&dir, &["sweep", "ok.toml", "--out", "ok", "--quiet"]);
+    assert!(ok, "{stderr}");
+    let lines = std::fs::read_to_string(dir.join("ok/results.jsonl")).unwrap();
+    assert_eq!(lines.lines().count(), 8);
+}
+
+#[test]
+fn a_block_size_that_does_not_divide_the_volume_is_refused_before_the_sweep() {
+    let dir = scratch("blocking");
+    refused_before_writing(
+        &dir,
+        "blocking.toml",
+        &experiment(
+            "blocking",
+            r#""none""#,
+            "\"blocking.enabled\" = [true]\n\"blocking.block_size\" = [8, 32]",
+        ),
+        &[
+            "blocking.toml",
+            r#"field `axes."blocking.block_size"`"#,
+            "blocking.block_size=32",
+            "does not divide",
+        ],
+    );
+}
+
+#[test]
+fn a_bad_depth_file_is_refused_before_the_sweep() {
+    let dir = scratch("depth");
+    // Of another size than the frames (8×8).
+    DepthImage {
+        width: 4,
+        height: 4,
+        depth: vec![1.0; 16],
+    }
+    .write(&dir.join("small.depth"))
+    .unwrap();
+    // A valid header in front of 3 GB (sparse): refused from its length, not read.
+    let mut f = std::fs::File::create(dir.join("sparse.depth")).unwrap();
+    use std::io::Write;
+    f.write_all(b"VIZDEPTH 8 8\n").unwrap();
+    f.set_len(3 << 30).unwrap();
+    for (file, needles) in [
+        ("nonexist.bin", &["nonexist.bin", "No such file"][..]),
+        ("/dev/zero", &["/dev/zero", "not a regular file"][..]),
+        ("small.depth", &["4x4", "the rendered image 8x8"][..]),
+        (
+            "sparse.depth",
+            &["sparse.depth", "a 8x8 image needs 256"][..],
+        ),
+    ] {
+        let axes =
+            format!("\"geometry.shape\" = [\"depth-file\"]\n\"geometry.file\" = [\"{file}\"]");
+        let mut all = vec![
+            "depth.toml",
+            r#"field `axes."geometry.file"`"#,
+            "geometry.file",
+        ];
+        all.extend_from_slice(needles);
+        refused_before_writing(
+            &dir,
+            "depth.toml",
+            &experiment("depth", r#""none""#, &axes),
+            &all,
+        );
+    }
 }
 
 #[test]

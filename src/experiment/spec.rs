@@ -1113,6 +1113,7 @@ impl Plan {
             .is_some();
         let mut configs: std::collections::HashMap<String, HardwareConfig> =
             std::collections::HashMap::new();
+        let mut on_volume = VolumeChecks::default();
         for name in &experiment.datasets {
             let dims = self.volumes[name].dims;
             for tf in &experiment.tf {
@@ -1261,6 +1262,42 @@ impl Plan {
                                         continue;
                                     }
                                 }
+                                // What preparing the run would refuse on its dataset,
+                                // refused here, before the sweep writes anything.
+                                on_volume
+                                    .check(&config, name, &self.volumes[name], self.size)
+                                    .map_err(|(field, e)| {
+                                        let axis = combo.iter().any(|(p, _)| p == field);
+                                        let problem = match e {
+                                            Error::Config {
+                                                field: f, message, ..
+                                            } if f == field && axis => message,
+                                            Error::Config {
+                                                field: f, message, ..
+                                            } => format!("field `{f}`: {message}"),
+                                            other => other.to_string(),
+                                        };
+                                        bad(
+                                            &if axis {
+                                                format!("axes.\"{field}\"")
+                                            } else if experiment.config.is_some() {
+                                                "config".to_string()
+                                            } else {
+                                                "datasets".to_string()
+                                            },
+                                            format!(
+                                                "the run {name}, tf {tf}, mode {}, {} model{}: \
+                                                 {problem}; leave such runs out with \
+                                                 [[exclude]] (docs/experiments.md)",
+                                                mode.name(),
+                                                model.name(),
+                                                combo
+                                                    .iter()
+                                                    .map(|(p, v)| format!(", {p}={v}"))
+                                                    .collect::<String>()
+                                            ),
+                                        )
+                                    })?;
                                 let mut fits = true;
                                 if mode.subcube > 0 {
                                     if mode.subcube > *dims.iter().max().unwrap_or(&0) {
@@ -1359,6 +1396,53 @@ impl Plan {
                     }
                 }
             }
+        }
+        Ok(())
+    }
+}
+
+/// What preparing a run refuses on its dataset that the configuration alone cannot tell
+/// (`run::prepare`), checked when the runs are generated so that a sweep (and its dry run)
+/// refuses them before it writes anything: the iso value within the volume's densities
+/// (`IsoSurface::from_config`), the block size dividing its dimensions
+/// (`blocking::check_block_size`), and the depth file (there, a regular file of the length its
+/// header announces, within the memory budget, of the frames' size:
+/// `Scene::check_depth_file`, which reads only its header). The checks that passed are kept,
+/// so each costs once per dataset and value.
+#[derive(Default)]
+struct VolumeChecks {
+    /// (dataset, iso value's bits) found inside the dataset's densities.
+    iso: std::collections::HashSet<(String, u64)>,
+    /// Depth files found valid for the frames' size.
+    depth_files: std::collections::HashSet<String>,
+}
+
+impl VolumeChecks {
+    /// Checks `config` on `volume` (the dataset `name`); an error with the field it is about.
+    fn check(
+        &mut self,
+        config: &HardwareConfig,
+        name: &str,
+        volume: &Volume,
+        size: (u32, u32),
+    ) -> std::result::Result<(), (&'static str, Error)> {
+        if config.iso.enabled {
+            let key = (name.to_string(), config.iso.value.to_bits());
+            if !self.iso.contains(&key) {
+                crate::iso::IsoSurface::from_config(config, volume)
+                    .map_err(|e| ("iso.value", e))?;
+                self.iso.insert(key);
+            }
+        }
+        if config.blocking.enabled {
+            crate::blocking::check_block_size(config.blocking.block_size, volume.dims)
+                .map_err(|e| ("blocking.block_size", e))?;
+        }
+        if config.geometry.shape == config::GeometryShape::DepthFile
+            && !self.depth_files.contains(&config.geometry.file)
+        {
+            crate::clip::Scene::check_depth_file(config, size).map_err(|e| ("geometry.file", e))?;
+            self.depth_files.insert(config.geometry.file.clone());
         }
         Ok(())
     }
