@@ -360,7 +360,7 @@ fn sweep_sequences(
                 expansion,
                 first,
                 &format!(
-                    ", the sequence of its {} time step{}",
+                    "; its sequence ({} pending time step{}) stopped",
                     runs.len(),
                     if runs.len() == 1 { "" } else { "s" }
                 ),
