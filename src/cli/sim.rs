@@ -229,7 +229,9 @@ pub fn run(args: SimArgs) -> Result<()> {
                 writeln!(
                     said,
                     "sampled (rate {:?}): every one of the {} units of {unit_rays} rays simulated, \
-                     so the timing figures above are exact{}",
+                     so the timing figures above are exact; the steps and samples are the \
+                     functional model's, as in every sampled run (an exact run also counts those \
+                     issued after ERT; docs/sampling.md){}",
                     m.sample_rate.unwrap_or_default(),
                     e.units,
                     if e.units < vizsim::arch::sampling::MIN_SAMPLED_UNITS {
