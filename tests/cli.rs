@@ -551,6 +551,13 @@ fn occupancy_reports_the_published_storage_and_sram_fit() {
     let report: serde_json::Value = serde_json::from_slice(&small.stdout).unwrap();
     assert_eq!(report["sizes"][0]["fits_sram"], false);
     assert_eq!(report["sizes"][2]["fits_sram"], true);
+    // The table says what its columns count.
+    let table = succeeds(&["occupancy", "phantom:jet:64"]);
+    let text = String::from_utf8_lossy(&table.stdout);
+    assert!(
+        text.contains("| empty groups '0' |") && text.contains("empty groups: 2×2×2 groups"),
+        "{text}"
+    );
 }
 
 #[test]

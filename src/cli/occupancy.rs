@@ -124,5 +124,11 @@ pub fn run(args: OccupancyArgs) -> Result<()> {
             r.empty_groups_class_percent
         );
     }
+    println!(
+        "skippable: sub-cubes the map marks empty (nothing visible: every sample there is \
+         leapt over); empty groups: 2×2×2 groups of sub-cubes all empty, which the two-level \
+         hierarchy (--hierarchy) leaps whole, as an empty sub-cube of twice the edge \
+         (docs/model.md)"
+    );
     Ok(())
 }
