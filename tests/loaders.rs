@@ -1001,3 +1001,25 @@ fn descriptor_line() -> impl Strategy<Value = String> {
     ]);
     (key, value).prop_map(|(k, v)| format!("{k} = {v}"))
 }
+
+/// Two files of one dataset name in the data folder (`fuel_4x4x4` and `fuel_8x8x8`): the short
+/// name is ambiguous and says so with both full names (it read "unknown dataset"); each full
+/// name loads its own file.
+#[test]
+fn a_name_two_files_share_is_ambiguous_not_unknown() {
+    let dir = std::env::temp_dir().join(format!("vizsim-ambiguous-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("fuel_4x4x4_uint8.raw"), [1u8; 64]).unwrap();
+    std::fs::write(dir.join("fuel_8x8x8_uint8.raw"), [2u8; 512]).unwrap();
+    let e = vizsim::volume::dataset::load("fuel", Some(&dir))
+        .expect_err("ambiguous")
+        .to_string();
+    assert!(
+        e.contains("`fuel` is ambiguous") && e.contains("fuel_4x4x4") && e.contains("fuel_8x8x8"),
+        "{e}"
+    );
+    let small = vizsim::volume::dataset::load("fuel_4x4x4", Some(&dir)).unwrap();
+    assert_eq!(small.dims, [4, 4, 4]);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -211,6 +211,24 @@ fn not_a_volume_file(spec: &str) -> Error {
 /// resolver itself reads (the folder's files, the aliases whose file is there, the phantom
 /// kinds), so that the list cannot fall behind it.
 fn unknown_dataset(spec: &str, available: &[DatasetEntry], data_dir: Option<&Path>) -> Error {
+    // Two files of one name (fuel_64x64x64 and fuel_16x16x16) are listed by their full names:
+    // the short one is ambiguous, not unknown.
+    let prefix = format!("{spec}_");
+    let same_name: Vec<&str> = available
+        .iter()
+        .filter(|e| e.name.starts_with(&prefix))
+        .map(|e| e.name.as_str())
+        .collect();
+    if same_name.len() > 1 {
+        return Error::Invalid(format!(
+            "dataset `{spec}` is ambiguous: the data directory{} holds {}; give one of those \
+             names",
+            data_dir
+                .map(|d| format!(" {}", d.display()))
+                .unwrap_or_default(),
+            same_name.join(", ")
+        ));
+    }
     let mut names: Vec<String> = available.iter().map(|e| e.name.clone()).collect();
     for (alias, name) in ALIASES {
         if available.iter().any(|e| e.name == *name) {
