@@ -495,7 +495,19 @@ fn merge_keeps_the_results_it_would_replace() {
     std::fs::write(a.join("results.jsonl"), &changed).unwrap();
     let differs = vizsim(&["merge", b_, "--out", a_]);
     assert!(!differs.status.success(), "a merged-in result differs");
-    assert!(String::from_utf8_lossy(&differs.stderr).contains("--out folder's earlier result"));
+    let stderr = String::from_utf8_lossy(&differs.stderr);
+    assert!(stderr.contains("--out folder's earlier result"), "{stderr}");
+    // It names the input the run was first read from, not "another input".
+    assert!(
+        stderr.contains(&format!("differs from the same run in {b_}")),
+        "{stderr}"
+    );
+    // A file given as an input is said to be one.
+    let file = a.join("results.jsonl");
+    vizsim_fails(
+        &["merge", file.to_str().unwrap(), "--out", b_],
+        "is a file, not a sweep folder",
+    );
     assert_eq!(
         std::fs::read_to_string(a.join("results.jsonl")).unwrap(),
         changed

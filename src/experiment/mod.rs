@@ -613,11 +613,18 @@ pub fn run_seconds(
 /// run was timed in several (wall times differ between machines; results do not).
 pub fn merge(inputs: &[&Path], out: &Path) -> Result<Merged> {
     let mut lines: BTreeMap<String, String> = BTreeMap::new();
+    // Where each run was first read, to name both inputs when another differs.
+    let mut first_from: BTreeMap<String, String> = BTreeMap::new();
     // A misspelt shard folder must not merge as "no results".
     if let Some(dir) = inputs.iter().find(|d| !d.is_dir()) {
         return Err(Error::Invalid(format!(
-            "{}: no such sweep folder",
-            dir.display()
+            "{}: {}",
+            dir.display(),
+            if dir.exists() {
+                "is a file, not a sweep folder"
+            } else {
+                "no such sweep folder"
+            }
         )));
     }
     // A folder without results is no sweep folder (a sweep makes the file when it starts).
@@ -741,7 +748,10 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<Merged> {
                     return Err(Error::format(
                         &path,
                         format!(
-                            "run {key} differs from the same run in another input{}",
+                            "run {key} differs from the same run in {}{}",
+                            first_from
+                                .get(&key)
+                                .map_or("another input".to_string(), |at| at.clone()),
                             if out_merged_in && *dir == out {
                                 " (this is the --out folder's earlier result: merge into \
                                  another folder to replace it)"
@@ -751,7 +761,9 @@ pub fn merge(inputs: &[&Path], out: &Path) -> Result<Merged> {
                         ),
                     ));
                 }
-                _ => {
+                Some(_) => {}
+                None => {
+                    first_from.insert(key.clone(), described(dir));
                     lines.insert(key, text);
                 }
             }
