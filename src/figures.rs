@@ -38,9 +38,16 @@ pub fn tf_label(tf: &str) -> &str {
     }
 }
 
-/// File names keep letters, digits, `.`, `_`, `=` and `-`; anything else becomes `-`.
+/// Longest piece of a file name `file_safe` makes: a chart's name joins several (dataset, tf,
+/// axis values) and must stay under the file system's 255 bytes.
+const FILE_SAFE_MAX: usize = 80;
+
+/// File names keep letters, digits, `.`, `_`, `=` and `-`; anything else becomes `-`. A name
+/// longer than 80 characters (a dataset named by a long path) keeps its first 63 and a hash of
+/// the whole, so distinct names stay distinct (a chart's name over 255 bytes failed to write).
 pub fn file_safe(name: &str) -> String {
-    name.chars()
+    let safe: String = name
+        .chars()
         .map(|c| {
             if c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '=' | '-') {
                 c
@@ -48,7 +55,15 @@ pub fn file_safe(name: &str) -> String {
                 '-'
             }
         })
-        .collect()
+        .collect();
+    if safe.len() <= FILE_SAFE_MAX {
+        return safe;
+    }
+    // FNV-1a: stable across builds and platforms, unlike the standard library's hasher.
+    let hash = name.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
+        (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
+    });
+    format!("{}-{hash:016x}", &safe[..63])
 }
 
 /// The value of swept field `axis` in a line, as text ("" when the line does not sweep it).

@@ -465,3 +465,19 @@ fn a_swept_field_over_a_decade_has_a_log_axis() {
         .collect();
     vizsim::figures::write_all(&close, &scratch("log-close")).unwrap();
 }
+
+/// Chart names are made of `file_safe` pieces: a long dataset name (a volume named by a long
+/// path) is cut to 80 characters with a hash of the whole, so two long names stay distinct and
+/// a chart's name stays under the file system's 255 bytes (found by probing: `plot` failed with
+/// "File name too long"); short names are unchanged.
+#[test]
+fn long_names_are_cut_with_a_hash() {
+    use vizsim::figures::file_safe;
+    assert_eq!(file_safe("phantom:sphere:32"), "phantom-sphere-32");
+    let long = |tail: &str| format!("{}/{tail}_64x64x64_uint8.raw", "deep/folder".repeat(30));
+    let (a, b) = (file_safe(&long("a")), file_safe(&long("b")));
+    assert_eq!(a.len(), 80, "{a}");
+    assert_ne!(a, b);
+    assert_eq!(a, file_safe(&long("a")), "stable");
+    assert!(a.starts_with("deep-folderdeep"), "{a}");
+}
