@@ -789,6 +789,24 @@ fn list_options_take_commas_and_the_zero_map_is_0() {
     assert_eq!(kind("a"), kind("b"));
 }
 
+/// `info`, `occupancy` and `update` take their dataset positionally or as `--dataset`, as the
+/// other commands do (`occupancy --dataset fuel` was "unexpected argument"); not both.
+#[test]
+fn dataset_commands_take_dataset_as_an_option_too() {
+    for command in ["info", "occupancy"] {
+        let positional = succeeds(&[command, "phantom:jet:32"]);
+        let option = succeeds(&[command, "--dataset", "phantom:jet:32"]);
+        assert_eq!(positional.stdout, option.stdout, "{command}");
+        let both = vizsim(&[command, "phantom:jet:32", "--dataset", "phantom:jet:32"]);
+        assert!(!both.status.success(), "{command}");
+        let neither = vizsim(&[command]);
+        assert!(!neither.status.success(), "{command}");
+        assert!(String::from_utf8_lossy(&neither.stderr).contains("DATASET"));
+    }
+    let update = succeeds(&["update", "--dataset", "phantom:jet:32", "--subcube", "8"]);
+    assert!(String::from_utf8_lossy(&update.stdout).starts_with("phantom:jet:32 [32, 32, 32]"));
+}
+
 /// A command that fails after checking its outputs leaves no folder it made for them (found by
 /// probing: a render refused for its iso value left `newdir/` and `newdir2/sub/` behind); one
 /// that succeeds makes them.

@@ -3,14 +3,12 @@
 use anyhow::Result;
 use clap::Args;
 
-use super::DataArgs;
+use super::{DataArgs, DatasetName};
 
 #[derive(Args)]
 pub struct InfoArgs {
-    /// Dataset: a name in the data folder (fuel, neghip, aneurism, skull and foot for their
-    /// stand-ins...; a wrong name lists them), phantom:KIND[:SIZE] (sphere, shells, jet,
-    /// metaballs, cast, tsdf, tube), or a raw, NRRD or descriptor file.
-    dataset: String,
+    #[command(flatten)]
+    dataset: DatasetName,
     #[command(flatten)]
     data: DataArgs,
     /// Print JSON instead of text.
@@ -19,7 +17,7 @@ pub struct InfoArgs {
 }
 
 pub fn run(args: InfoArgs) -> Result<()> {
-    let (spec, data, json) = (&args.dataset, &args.data, args.json);
+    let (spec, data, json) = (args.dataset.spec(), &args.data, args.json);
     let volume = data.load(spec)?;
     let info = volume.info();
     if json {

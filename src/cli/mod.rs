@@ -202,6 +202,33 @@ pub fn note_stand_in(spec: &str) {
     }
 }
 
+/// The dataset of `info`, `occupancy` and `update`: positional (`vizsim info fuel`), or as
+/// `--dataset` as `render`, `sim` and `advise` take it.
+#[derive(Args)]
+pub struct DatasetName {
+    /// Dataset: a name in the data folder (fuel, neghip, aneurism, skull and foot for their
+    /// stand-ins...; a wrong name lists them), phantom:KIND[:SIZE] (sphere, shells, jet,
+    /// metaballs, cast, tsdf, tube), or a raw, NRRD or descriptor file; or give it as --dataset.
+    #[arg(
+        value_name = "DATASET",
+        required_unless_present = "dataset",
+        conflicts_with = "dataset"
+    )]
+    positional: Option<String>,
+    /// The dataset, as render and sim take it (instead of the positional DATASET).
+    #[arg(long = "dataset", id = "dataset", value_name = "DATASET")]
+    option: Option<String>,
+}
+
+impl DatasetName {
+    pub fn spec(&self) -> &str {
+        self.positional
+            .as_deref()
+            .or(self.option.as_deref())
+            .unwrap_or_default()
+    }
+}
+
 /// What defines a frame: dataset, transfer function, view and sampling.
 #[derive(Args)]
 pub struct FrameArgs {

@@ -3,12 +3,12 @@
 use anyhow::Result;
 use clap::Args;
 
-use super::{DataArgs, HardwareArgs};
+use super::{DataArgs, DatasetName, HardwareArgs};
 
 #[derive(Args)]
 pub struct OccupancyArgs {
-    /// Dataset name, phantom spec or file.
-    dataset: String,
+    #[command(flatten)]
+    dataset: DatasetName,
     #[command(flatten)]
     data: DataArgs,
     /// Transfer function for the class map: `class`, `zero`, a preset or a file.
@@ -41,7 +41,7 @@ struct OccupancyRow {
 
 pub fn run(args: OccupancyArgs) -> Result<()> {
     let (spec, data, tf_arg, hardware, json) = (
-        &args.dataset,
+        args.dataset.spec(),
         &args.data,
         &args.tf,
         &args.hardware,

@@ -6,12 +6,13 @@
 use anyhow::{Context, Result};
 use clap::Args;
 
-use super::{DataArgs, HardwareArgs};
+use super::{DataArgs, DatasetName, HardwareArgs};
 
 #[derive(Args)]
 pub struct UpdateArgs {
-    /// Dataset name, phantom spec or file: the volume downloaded.
-    dataset: String,
+    /// The volume downloaded.
+    #[command(flatten)]
+    dataset: DatasetName,
     #[command(flatten)]
     data: DataArgs,
     /// Transfer function of the class map: `class`, `zero`, a preset or a file.
@@ -52,7 +53,7 @@ pub fn run(args: UpdateArgs) -> Result<()> {
         "--subcube: the sub-cube size of the maps is required (or occupancy.subcube by --set or \
          --config)"
     );
-    let volume = args.data.load(&args.dataset)?;
+    let volume = args.data.load(args.dataset.spec())?;
     let tf = vizsim::transfer::resolve_for(&args.tf, &volume).context("--tf")?;
     let table = ClassificationTable::build(
         &tf,
@@ -71,7 +72,7 @@ pub fn run(args: UpdateArgs) -> Result<()> {
                  partial update needs the same extent and bit depth",
                 next.dims,
                 next.bits,
-                args.dataset,
+                args.dataset.spec(),
                 volume.dims,
                 volume.bits
             );
