@@ -3,8 +3,10 @@
 //! against the file's length and the memory budget before any value is read, and only the
 //! values the header announces read. Its errors name the field.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 use vizsim::clip::DepthImage;
@@ -17,37 +19,6 @@ fn scratch(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
-}
-
-/// Runs vizsim, killing it after 20 s (a hang is a failure, not a stuck test run); returns
-/// whether it succeeded and its stderr.
-fn run_bounded(args: &[&str]) -> (bool, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_vizsim"))
-        .args(args)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run vizsim");
-    let start = Instant::now();
-    loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            let mut stderr = String::new();
-            use std::io::Read;
-            child
-                .stderr
-                .take()
-                .unwrap()
-                .read_to_string(&mut stderr)
-                .unwrap();
-            return (status.success(), stderr);
-        }
-        if start.elapsed() > Duration::from_secs(20) {
-            child.kill().unwrap();
-            let _ = child.wait();
-            panic!("{args:?} hung for 20 s");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
 }
 
 /// Renders an 8×8 frame with `file` as the depth image under a 512 MiB budget; must fail with
@@ -72,7 +43,7 @@ fn render_refused(dir: &Path, file: &str, needles: &[&str]) {
         "-o",
         png.to_str().unwrap(),
     ];
-    let (ok, stderr) = run_bounded(&args);
+    let (ok, stderr) = common::run_bounded(None, &args, 20);
     assert!(!ok, "{file}: succeeded");
     assert!(!stderr.contains("panicked"), "{file}: panicked: {stderr}");
     for n in needles {

@@ -2,6 +2,8 @@
 //! inputs, absurd numbers. Each must end quickly with a non-zero exit and a message naming
 //! the path or field; none may hang, panic or exhaust memory.
 
+mod common;
+
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -14,36 +16,6 @@ fn scratch(name: &str) -> PathBuf {
     dir
 }
 
-/// Runs vizsim, killing it after 30 s (a hang is a failure, not a stuck test run).
-fn run_bounded(args: &[&str]) -> (bool, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_vizsim"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run vizsim");
-    let start = Instant::now();
-    loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            let mut stderr = String::new();
-            use std::io::Read;
-            child
-                .stderr
-                .take()
-                .unwrap()
-                .read_to_string(&mut stderr)
-                .unwrap();
-            return (status.success(), stderr);
-        }
-        if start.elapsed() > Duration::from_secs(30) {
-            child.kill().unwrap();
-            panic!("{args:?} hung for 30 s");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-}
-
 fn mkfifo(path: &std::path::Path) {
     let ok = Command::new("mkfifo")
         .arg(path)
@@ -53,7 +25,7 @@ fn mkfifo(path: &std::path::Path) {
 }
 
 fn assert_refused(args: &[&str], needles: &[&str]) {
-    let (ok, stderr) = run_bounded(args);
+    let (ok, stderr) = common::run_bounded(None, args, 30);
     assert!(!ok, "{args:?} succeeded");
     assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
     for n in needles {
@@ -267,15 +239,19 @@ fn symlinks_and_devices_as_outputs_are_written_through() {
     let link = dir.join("link.png");
     std::os::unix::fs::symlink(&real, &link).unwrap();
     let render = |out: &std::path::Path| {
-        run_bounded(&[
-            "render",
-            "--dataset",
-            "phantom:sphere:16",
-            "--size",
-            "8x8",
-            "-o",
-            out.to_str().unwrap(),
-        ])
+        common::run_bounded(
+            None,
+            &[
+                "render",
+                "--dataset",
+                "phantom:sphere:16",
+                "--size",
+                "8x8",
+                "-o",
+                out.to_str().unwrap(),
+            ],
+            30,
+        )
     };
     let (ok, stderr) = render(&link);
     assert!(ok, "{stderr}");
@@ -477,7 +453,7 @@ fn a_fifo_output_needs_its_reader() {
         .unwrap();
     // Let the reader reach its open() (it counts as the FIFO's reader from there on).
     std::thread::sleep(Duration::from_millis(300));
-    let (ok, stderr) = run_bounded(&args);
+    let (ok, stderr) = common::run_bounded(None, &args, 30);
     assert!(ok, "{stderr}");
     let json = reader.wait_with_output().unwrap().stdout;
     let value: serde_json::Value = serde_json::from_slice(&json).expect("the whole JSON");

@@ -5,9 +5,9 @@
 //! A run that still fails during the sweep is named (file, key, dataset, tf, mode, model,
 //! frame, axis values), and the results written before it are kept.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
 
 use vizsim::clip::DepthImage;
 use vizsim::experiment::{self, spec};
@@ -20,38 +20,6 @@ fn scratch(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
-}
-
-/// Runs vizsim in `dir`, killing it after 30 s (a hang is a failure); returns whether it
-/// succeeded and its stderr.
-fn run_bounded(dir: &Path, args: &[&str]) -> (bool, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_vizsim"))
-        .args(args)
-        .current_dir(dir)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run vizsim");
-    let start = Instant::now();
-    loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            let mut stderr = String::new();
-            use std::io::Read;
-            child
-                .stderr
-                .take()
-                .unwrap()
-                .read_to_string(&mut stderr)
-                .unwrap();
-            return (status.success(), stderr);
-        }
-        if start.elapsed() > Duration::from_secs(30) {
-            child.kill().unwrap();
-            let _ = child.wait();
-            panic!("{args:?} hung for 30 s");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
 }
 
 /// An experiment on a 16³ phantom, 8×8 frames, with `modes` and the `[axes]` lines `axes`.
@@ -81,7 +49,7 @@ fn refused_before_writing(dir: &Path, file: &str, text: &str, needles: &[&str]) 
         if dry {
             args.push("--dry-run");
         }
-        let (ok, stderr) = run_bounded(dir, &args);
+        let (ok, stderr) = common::run_bounded(Some(dir), &args, 30);
         assert!(!ok, "{args:?} succeeded");
         assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
         for n in needles {
@@ -115,7 +83,11 @@ fn an_iso_value_outside_the_dataset_is_refused_before_the_sweep() {
     let text = experiment("iso", r#""iso2""#, r#""iso.value" = [100, 60000]"#)
         + "[[exclude]]\n\"iso.value\" = 60000\n";
     std::fs::write(dir.join("ok.toml"), text).unwrap();
-    let (ok, stderr) = run_bounded(&dir, &["sweep", "ok.toml", "--out", "ok", "--quiet"]);
+    let (ok, stderr) = common::run_bounded(
+        Some(&dir),
+        &["sweep", "ok.toml", "--out", "ok", "--quiet"],
+        30,
+    );
     assert!(ok, "{stderr}");
     let lines = std::fs::read_to_string(dir.join("ok/results.jsonl")).unwrap();
     assert_eq!(lines.lines().count(), 8);

@@ -212,3 +212,36 @@ pub fn assert_leaping_is_invisible(volume: &Volume, tf: &TransferFunction, size:
         }
     }
 }
+
+/// Runs the vizsim binary in `dir` (the crate's folder when None), killing it after `seconds`
+/// (a hang is a failure, not a stuck test run); returns whether it succeeded and its stderr.
+pub fn run_bounded(dir: Option<&std::path::Path>, args: &[&str], seconds: u64) -> (bool, String) {
+    use std::io::Read;
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args(args)
+        .current_dir(dir.unwrap_or(std::path::Path::new(env!("CARGO_MANIFEST_DIR"))))
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run vizsim");
+    let start = std::time::Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            let mut stderr = String::new();
+            child
+                .stderr
+                .take()
+                .unwrap()
+                .read_to_string(&mut stderr)
+                .unwrap();
+            return (status.success(), stderr);
+        }
+        if start.elapsed() > std::time::Duration::from_secs(seconds) {
+            child.kill().unwrap();
+            let _ = child.wait();
+            panic!("{args:?} hung for {seconds} s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+}
