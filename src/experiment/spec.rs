@@ -1262,6 +1262,18 @@ impl Plan {
                                         continue;
                                     }
                                 }
+                                // The run, as errors name it.
+                                let the_run = || {
+                                    format!(
+                                        "the run {name}, tf {tf}, mode {}, {} model{}",
+                                        mode.name(),
+                                        model.name(),
+                                        combo
+                                            .iter()
+                                            .map(|(p, v)| format!(", {p}={v}"))
+                                            .collect::<String>()
+                                    )
+                                };
                                 // What preparing the run would refuse on its dataset,
                                 // refused here, before the sweep writes anything.
                                 on_volume
@@ -1286,15 +1298,9 @@ impl Plan {
                                                 "datasets".to_string()
                                             },
                                             format!(
-                                                "the run {name}, tf {tf}, mode {}, {} model{}: \
-                                                 {problem}; leave such runs out with \
+                                                "{}: {problem}; leave such runs out with \
                                                  [[exclude]] (docs/experiments.md)",
-                                                mode.name(),
-                                                model.name(),
-                                                combo
-                                                    .iter()
-                                                    .map(|(p, v)| format!(", {p}={v}"))
-                                                    .collect::<String>()
+                                                the_run()
                                             ),
                                         )
                                     })?;
@@ -1347,20 +1353,8 @@ impl Plan {
                                     // What the run path would refuse (sampling with leap
                                     // values, a frame over the budget...), refused before any
                                     // run rather than when the run comes up.
-                                    run.validate().map_err(|e| {
-                                        bad(
-                                            "modes",
-                                            format!(
-                                                "the run {name}, tf {tf}, mode {}, {} model{}: {e}",
-                                                mode.name(),
-                                                model.name(),
-                                                combo
-                                                    .iter()
-                                                    .map(|(p, v)| format!(", {p}={v}"))
-                                                    .collect::<String>()
-                                            ),
-                                        )
-                                    })?;
+                                    run.validate()
+                                        .map_err(|e| bad("modes", format!("{}: {e}", the_run())))?;
                                     let spec = RunSpec {
                                         key: run_key(&run),
                                         index: 0,
