@@ -373,17 +373,34 @@ pub fn check_writable(path: &Path) -> Result<()> {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => std::path::PathBuf::from("."),
         };
-        let missing: Vec<&Path> = parent
-            .ancestors()
-            .take_while(|p| !p.as_os_str().is_empty() && !p.exists())
-            .collect();
-        let checked = temporary_path(&real).and_then(|tmp| {
-            std::fs::File::create(&tmp).map_err(|e| Error::io(path, e))?;
-            let _ = std::fs::remove_file(&tmp);
-            Ok(())
-        });
+        // Made one at a time from the top, so that exactly the folders this check made are
+        // removed again (a path through `..` may name a folder that was there before).
+        let mut made: Vec<std::path::PathBuf> = Vec::new();
+        let mut prefix = std::path::PathBuf::new();
+        let mut checked = Ok(());
+        for part in parent.components() {
+            prefix.push(part);
+            if !prefix.exists() {
+                match std::fs::create_dir(&prefix) {
+                    Ok(()) => made.push(prefix.clone()),
+                    // Made by another process meanwhile: not ours to remove.
+                    Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
+                    Err(e) => {
+                        checked = Err(Error::io(&prefix, e));
+                        break;
+                    }
+                }
+            }
+        }
+        if checked.is_ok() {
+            checked = temporary_path(&real).and_then(|tmp| {
+                std::fs::File::create(&tmp).map_err(|e| Error::io(path, e))?;
+                let _ = std::fs::remove_file(&tmp);
+                Ok(())
+            });
+        }
         // Deepest first; a folder something else wrote into meanwhile stays.
-        for dir in missing {
+        for dir in made.iter().rev() {
             let _ = std::fs::remove_dir(dir);
         }
         checked?;

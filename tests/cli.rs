@@ -840,6 +840,20 @@ fn a_failed_command_leaves_no_new_folders() {
     let ok = args("100");
     succeeds(&ok.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(png.is_file() && json.is_file());
+    // Only the folders it made: an empty folder that was there, reached through a new one and
+    // `..`, stays (the review found it removed).
+    let existing = dir.join("existing");
+    std::fs::create_dir_all(&existing).unwrap();
+    let through = dir.join("new/../existing/x.png");
+    let out = vizsim(&[
+        "render",
+        "--dataset",
+        "phantom:nosuch:16",
+        "-o",
+        through.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(existing.is_dir() && !dir.join("new").exists());
 }
 
 /// An output that names an input, or another output of the same command, is refused before
