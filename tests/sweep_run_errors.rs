@@ -111,6 +111,33 @@ fn a_block_size_that_does_not_divide_the_volume_is_refused_before_the_sweep() {
             "does not divide",
         ],
     );
+    // A run left out for its mode (a sub-cube larger than the volume) is left out, not an
+    // error, whatever its block size (the review found the check made before the skip).
+    let text = experiment(
+        "blocking-skip",
+        r#""ert+leap32""#,
+        "\"blocking.enabled\" = [true]\n\"blocking.block_size\" = [32]",
+    )
+    .replace(
+        r#"datasets = ["phantom:sphere:16"]"#,
+        r#"datasets = ["phantom:sphere:16", "phantom:sphere:64"]"#,
+    );
+    std::fs::write(dir.join("skip.toml"), text).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_vizsim"))
+        .args(["sweep", "skip.toml", "--out", "skip", "--dry-run"])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("left out") && stdout.contains("sub-cube larger than the volume"),
+        "{stdout}"
+    );
 }
 
 #[test]

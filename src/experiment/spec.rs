@@ -1274,36 +1274,6 @@ impl Plan {
                                             .collect::<String>()
                                     )
                                 };
-                                // What preparing the run would refuse on its dataset,
-                                // refused here, before the sweep writes anything.
-                                on_volume
-                                    .check(&config, name, &self.volumes[name], self.size)
-                                    .map_err(|(field, e)| {
-                                        let axis = combo.iter().any(|(p, _)| p == field);
-                                        let problem = match e {
-                                            Error::Config {
-                                                field: f, message, ..
-                                            } if f == field && axis => message,
-                                            Error::Config {
-                                                field: f, message, ..
-                                            } => format!("field `{f}`: {message}"),
-                                            other => other.to_string(),
-                                        };
-                                        bad(
-                                            &if axis {
-                                                format!("axes.\"{field}\"")
-                                            } else if experiment.config.is_some() {
-                                                "config".to_string()
-                                            } else {
-                                                "datasets".to_string()
-                                            },
-                                            format!(
-                                                "{}: {problem}; leave such runs out with \
-                                                 [[exclude]] (docs/experiments.md)",
-                                                the_run()
-                                            ),
-                                        )
-                                    })?;
                                 let mut fits = true;
                                 if mode.subcube > 0 {
                                     if mode.subcube > *dims.iter().max().unwrap_or(&0) {
@@ -1337,6 +1307,37 @@ impl Plan {
                                         config.occupancy.sram_bits = bits.next_power_of_two();
                                     }
                                 }
+                                // What preparing the run would refuse on its dataset,
+                                // refused here, before the sweep writes anything (after the
+                                // runs left out above, which are not errors).
+                                on_volume
+                                    .check(&config, name, &self.volumes[name], self.size)
+                                    .map_err(|(field, e)| {
+                                        let axis = combo.iter().any(|(p, _)| p == field);
+                                        let problem = match e {
+                                            Error::Config {
+                                                field: f, message, ..
+                                            } if f == field && axis => message,
+                                            Error::Config {
+                                                field: f, message, ..
+                                            } => format!("field `{f}`: {message}"),
+                                            other => other.to_string(),
+                                        };
+                                        bad(
+                                            &if axis {
+                                                format!("axes.\"{field}\"")
+                                            } else if experiment.config.is_some() {
+                                                "config".to_string()
+                                            } else {
+                                                "datasets".to_string()
+                                            },
+                                            format!(
+                                                "{}: {problem}; leave such runs out with \
+                                                 [[exclude]] (docs/experiments.md)",
+                                                the_run()
+                                            ),
+                                        )
+                                    })?;
                                 let axes_json: BTreeMap<String, serde_json::Value> = combo
                                     .iter()
                                     .map(|(p, v)| (p.clone(), toml_to_json(v)))
