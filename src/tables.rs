@@ -302,12 +302,11 @@ fn sort_key(field: &str, text: &str) -> (i64, String) {
                 }
             };
             // Then its variants right after it: bounding bricks by size (the table version
-            // after each), then iso mode by refinement steps.
-            let variant = match (number("bricks"), number("iso")) {
-                (_, Some(steps)) => 1000 + steps,
-                (Some(bricks), None) => 1 + 2 * bricks + tokens().any(|t| t == "table") as i64,
-                (None, None) => 0,
-            };
+            // after each), then iso mode by refinement steps, each with its bricks likewise.
+            let bricks =
+                number("bricks").map_or(0, |n| 1 + 2 * n + tokens().any(|t| t == "table") as i64);
+            let iso = number("iso").map_or(0, |steps| 1 + steps);
+            let variant = iso * 1000 + bricks;
             let rank = if text == "none" {
                 0
             } else {
@@ -1211,6 +1210,10 @@ mod tests {
             "ert+bricks16+table",
             "ert+bricks32",
             "ert+iso0",
+            "ert+bricks4+iso0",
+            "ert+bricks16+iso0",
+            "ert+iso2",
+            "ert+bricks16+iso2",
             "ert+iso6",
             "ert+leap4+bricks8",
             "ert+leap8",
