@@ -43,8 +43,9 @@ pub fn tf_label(tf: &str) -> &str {
 const FILE_SAFE_MAX: usize = 80;
 
 /// File names keep letters, digits, `.`, `_`, `=` and `-`; anything else becomes `-`. A name
-/// longer than 80 characters (a dataset named by a long path) keeps its first 63 and a hash of
-/// the whole, so distinct names stay distinct (a chart's name over 255 bytes failed to write).
+/// longer than 80 characters (a dataset named by a long path) keeps its first 20 and last 42
+/// (a path's file name, which tells datasets apart) and a hash of the whole, so distinct names
+/// stay distinct (a chart's name over 255 bytes failed to write).
 pub fn file_safe(name: &str) -> String {
     let safe: String = name
         .chars()
@@ -63,7 +64,8 @@ pub fn file_safe(name: &str) -> String {
     let hash = name.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
         (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
     });
-    format!("{}-{hash:016x}", &safe[..63])
+    // Every character of `safe` is ASCII, so these are character boundaries.
+    format!("{}-{}-{hash:016x}", &safe[..20], &safe[safe.len() - 42..])
 }
 
 /// The value of swept field `axis` in a line, as text ("" when the line does not sweep it).

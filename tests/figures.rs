@@ -467,7 +467,7 @@ fn a_swept_field_over_a_decade_has_a_log_axis() {
 }
 
 /// Chart names are made of `file_safe` pieces: a long dataset name (a volume named by a long
-/// path) is cut to 80 characters with a hash of the whole, so two long names stay distinct and
+/// path) is cut to 80 characters, its start and end with a hash of the whole, so two long names stay distinct and
 /// a chart's name stays under the file system's 255 bytes (found by probing: `plot` failed with
 /// "File name too long"); short names are unchanged.
 #[test]
@@ -480,4 +480,6 @@ fn long_names_are_cut_with_a_hash() {
     assert_ne!(a, b);
     assert_eq!(a, file_safe(&long("a")), "stable");
     assert!(a.starts_with("deep-folderdeep"), "{a}");
+    // The end (the file name, which tells datasets apart) is kept.
+    assert!(a.contains("-a_64x64x64_uint8.raw-"), "{a}");
 }
