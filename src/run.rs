@@ -387,13 +387,99 @@ fn structure_bytes_per_voxel(run: &RunDescription) -> u64 {
     leaping + if run.shading { 6 } else { 0 }
 }
 
-/// Validates `run` and prepares it on `volume` (which must be the run's dataset).
-pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<'v>> {
-    run.validate()?;
+/// What preparing `run` on `volume` refuses before it builds anything: the memory budget for
+/// its structures and frame, and with the SDRAM model the voxel word and the rows the volume
+/// needs. `prepare` checks it first; a sweep checks it for every configuration when it expands
+/// (with `check_blocked_fit_on_volume`), so that such a run is refused before a result is
+/// written rather than stopping the sweep when its turn comes.
+pub fn check_on_volume(run: &RunDescription, volume: &Volume) -> Result<()> {
     crate::budget::check(
         &format!("this run's structures for `{}`", volume.name),
         volume.data.len() as u64 * structure_bytes_per_voxel(run) + frame_bytes(run.size),
     )?;
+    if run.model == Model::Cycle && run.memory == Memory::Sdram {
+        check_gradient_word(run, Some(volume.bits))?;
+        let distance = matches!(run.leaping(), Leaping::Distance { .. });
+        if let Err(e) = check_volume_memory(&run.hardware, volume.dims, distance) {
+            let tf = transfer::resolve_for(&run.tf, volume)?;
+            return Err(with_blocking_hint(e, run, volume, &tf, &run.settings()));
+        }
+    }
+    Ok(())
+}
+
+/// With blocking and the SDRAM model, the blocks the transfer function makes active must fit
+/// the memory's slots. `prepare` checks the renderer's own table; a sweep's expansion builds
+/// the same table here (the blocks depend on the dataset and the transfer function, so a
+/// configuration alone cannot tell).
+pub fn check_blocked_fit_on_volume(run: &RunDescription, volume: &Volume) -> Result<()> {
+    let config = &run.hardware;
+    if !(run.model == Model::Cycle && run.memory == Memory::Sdram && config.blocking.enabled) {
+        return Ok(());
+    }
+    let size = crate::blocking::check_block_size(config.blocking.block_size, volume.dims)?;
+    let tf = transfer::resolve_for(&run.tf, volume)?;
+    let blocks = block_table(run, volume, &tf, &run.settings(), 1 << size);
+    check_blocked_fit(run, volume.dims, &blocks)
+}
+
+/// The block table of edge `size` the fixed-point renderer builds for `run` (blocking works
+/// with the occupancy map only, so from the dataset itself).
+fn block_table(
+    run: &RunDescription,
+    volume: &Volume,
+    tf: &transfer::TransferFunction,
+    settings: &RenderSettings,
+    size: usize,
+) -> BlockTable {
+    let config = &run.hardware;
+    let table = crate::functional::arith::ClassificationTable::build(
+        tf,
+        volume.max_value() as usize + 1,
+        config.classification.lut_bits,
+        settings.sample_spacing,
+    );
+    BlockTable::build(
+        volume,
+        config.occupancy.kind,
+        size.trailing_zeros(),
+        table.any_visible(0, 0),
+        |lo, hi| table.any_visible(lo, hi),
+    )
+}
+
+/// The blocked volume's active blocks must fit the memory's slots.
+fn check_blocked_fit(run: &RunDescription, dims: [usize; 3], blocks: &BlockTable) -> Result<()> {
+    let memory = &run.hardware.memory;
+    let stats = BlockingStats::new(blocks, memory, dims, 0);
+    if stats.fits(memory) {
+        return Ok(());
+    }
+    Err(Error::config(
+        "hardware configuration",
+        "memory.rows",
+        format!(
+            "the {dims:?} volume does not fit with blocking: {}; the modules have {} rows per \
+             bank{}",
+            stats.describe(),
+            memory.rows,
+            if stats.rows_unblocked <= memory.rows as u64 {
+                format!(
+                    ", and without blocking it takes {} (a slot of (B + 2)³ voxels fills whole \
+                     rows; use a larger blocking.block_size or none)",
+                    stats.rows_unblocked
+                )
+            } else {
+                String::new()
+            }
+        ),
+    ))
+}
+
+/// Validates `run` and prepares it on `volume` (which must be the run's dataset).
+pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<'v>> {
+    run.validate()?;
+    check_on_volume(run, volume)?;
     let tf = transfer::resolve_for(&run.tf, volume)?;
     let settings = run.settings();
     let renderer = match run.model {
@@ -418,41 +504,10 @@ pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<
         }
         Model::Step | Model::Cycle => {
             let sdram = run.model == Model::Cycle && run.memory == Memory::Sdram;
-            if sdram {
-                check_gradient_word(run, Some(volume.bits))?;
-                let distance = matches!(run.leaping(), Leaping::Distance { .. });
-                if let Err(e) = check_volume_memory(&run.hardware, volume.dims, distance) {
-                    return Err(with_blocking_hint(e, run, volume, &tf, &settings));
-                }
-            }
             let renderer =
                 FixedRenderer::new(volume, &tf, &settings, &run.hardware, run.leaping())?;
             if let (true, Some(blocks)) = (sdram, &renderer.blocks) {
-                let memory = &run.hardware.memory;
-                let stats = BlockingStats::new(blocks, memory, volume.dims, 0);
-                if !stats.fits(memory) {
-                    return Err(Error::config(
-                        "hardware configuration",
-                        "memory.rows",
-                        format!(
-                            "the {:?} volume does not fit with blocking: {}; the modules have {} \
-                             rows per bank{}",
-                            volume.dims,
-                            stats.describe(),
-                            memory.rows,
-                            if stats.rows_unblocked <= memory.rows as u64 {
-                                format!(
-                                    ", and without blocking it takes {} (a slot of (B + 2)³ \
-                                     voxels fills whole rows; use a larger blocking.block_size \
-                                     or none)",
-                                    stats.rows_unblocked
-                                )
-                            } else {
-                                String::new()
-                            }
-                        ),
-                    ));
-                }
+                check_blocked_fit(run, volume.dims, blocks)?;
             }
             Renderer::Fixed(Box::new(renderer))
         }
@@ -543,19 +598,7 @@ fn with_blocking_hint(
         .find(|&b| volume.dims.iter().all(|&d| d.is_multiple_of(b)));
     let hint = match (size, run.leaping()) {
         (Some(size), Leaping::None | Leaping::Occupancy { .. }) => {
-            let table = crate::functional::arith::ClassificationTable::build(
-                tf,
-                volume.max_value() as usize + 1,
-                config.classification.lut_bits,
-                settings.sample_spacing,
-            );
-            let blocks = BlockTable::build(
-                volume,
-                config.occupancy.kind,
-                size.trailing_zeros(),
-                table.any_visible(0, 0),
-                |lo, hi| table.any_visible(lo, hi),
-            );
+            let blocks = block_table(run, volume, tf, settings, size);
             let stats = BlockingStats::new(&blocks, &config.memory, volume.dims, 0);
             if stats.fits(&config.memory) {
                 format!(

@@ -1,7 +1,8 @@
 //! Runs that fail on their dataset: what preparing a run refuses on the volume (an iso value
 //! outside its densities, a block size that does not divide it, a depth file that is missing,
-//! not a file or of the wrong size) is refused when the experiment is validated, dry run or
-//! not, before the sweep writes anything, naming the experiment file, the axis and the value.
+//! not a file or of the wrong size, a volume that does not fit the SDRAM's rows, with blocking
+//! or without) is refused when the experiment is validated, dry run or not, before the sweep
+//! writes anything, naming the experiment file, the axis and the value.
 //! A run that still fails during the sweep is named (file, key, dataset, tf, mode, model,
 //! frame, axis values), and the results written before it are kept.
 
@@ -138,6 +139,57 @@ fn a_block_size_that_does_not_divide_the_volume_is_refused_before_the_sweep() {
         stdout.contains("left out") && stdout.contains("sub-cube larger than the volume"),
         "{stdout}"
     );
+}
+
+#[test]
+fn a_volume_that_does_not_fit_the_memory_is_refused_before_the_sweep() {
+    let dir = scratch("memory");
+    // The cycle model on a 64³ phantom: 4,096 rows per bank hold it, 2 do not. The sweep
+    // wrote the 8 frames with 4,096 rows, then stopped at the first with 2.
+    let cycle = |name: &str, axes: &str| {
+        experiment(name, r#""none""#, axes)
+            .replace("phantom:sphere:16", "phantom:sphere:64")
+            .replace(r#"models = ["step"]"#, r#"models = ["cycle"]"#)
+    };
+    refused_before_writing(
+        &dir,
+        "rows.toml",
+        &cycle("rows", r#""memory.rows" = [4096, 2]"#),
+        &[
+            "rows.toml",
+            r#"field `axes."memory.rows"`"#,
+            "memory.rows=2",
+            "needs 32 rows per bank",
+            "the modules have 2",
+        ],
+    );
+    // With blocking the transfer function decides how many blocks must be held: the check
+    // builds the block table on the dataset.
+    refused_before_writing(
+        &dir,
+        "blocked.toml",
+        &cycle(
+            "blocked",
+            "\"blocking.enabled\" = [true]\n\"memory.rows\" = [4096, 4]",
+        ),
+        &[
+            "blocked.toml",
+            r#"field `axes."memory.rows"`"#,
+            "blocking.enabled=true, memory.rows=4",
+            "does not fit with blocking",
+            "8 active blocks",
+        ],
+    );
+    // The same runs on the step model (no SDRAM) are valid.
+    let text = experiment("rows-step", r#""none""#, r#""memory.rows" = [4096, 2]"#)
+        .replace("phantom:sphere:16", "phantom:sphere:64");
+    std::fs::write(dir.join("step.toml"), text).unwrap();
+    let (ok, stderr) = common::run_bounded(
+        Some(&dir),
+        &["sweep", "step.toml", "--out", "step", "--dry-run"],
+        30,
+    );
+    assert!(ok, "{stderr}");
 }
 
 #[test]

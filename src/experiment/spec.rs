@@ -1307,42 +1307,12 @@ impl Plan {
                                         config.occupancy.sram_bits = bits.next_power_of_two();
                                     }
                                 }
-                                // What preparing the run would refuse on its dataset,
-                                // refused here, before the sweep writes anything (after the
-                                // runs left out above, which are not errors).
-                                on_volume
-                                    .check(&config, name, &self.volumes[name], self.size)
-                                    .map_err(|(field, e)| {
-                                        let axis = combo.iter().any(|(p, _)| p == field);
-                                        let problem = match e {
-                                            Error::Config {
-                                                field: f, message, ..
-                                            } if f == field && axis => message,
-                                            Error::Config {
-                                                field: f, message, ..
-                                            } => format!("field `{f}`: {message}"),
-                                            other => other.to_string(),
-                                        };
-                                        bad(
-                                            &if axis {
-                                                format!("axes.\"{field}\"")
-                                            } else if experiment.config.is_some() {
-                                                "config".to_string()
-                                            } else {
-                                                "datasets".to_string()
-                                            },
-                                            format!(
-                                                "{}: {problem}; leave such runs out with \
-                                                 [[exclude]] (docs/experiments.md)",
-                                                the_run()
-                                            ),
-                                        )
-                                    })?;
                                 let axes_json: BTreeMap<String, serde_json::Value> = combo
                                     .iter()
                                     .map(|(p, v)| (p.clone(), toml_to_json(v)))
                                     .collect();
-                                for &frame in &self.frame_list {
+                                for (f, &frame) in self.frame_list.iter().enumerate() {
+                                    let first_frame = f == 0;
                                     let view = view_of(frame);
                                     let run = RunDescription {
                                         view,
@@ -1356,6 +1326,40 @@ impl Plan {
                                     // run rather than when the run comes up.
                                     run.validate()
                                         .map_err(|e| bad("modes", format!("{}: {e}", the_run())))?;
+                                    // What preparing the run would refuse on its dataset,
+                                    // refused here, before the sweep writes anything (after the
+                                    // runs left out above, which are not errors); once per
+                                    // configuration, the frames share it.
+                                    if first_frame {
+                                        on_volume.check(&run, &self.volumes[name]).map_err(
+                                            |(field, e)| {
+                                                let axis = combo.iter().any(|(p, _)| *p == field);
+                                                let problem = match e {
+                                                    Error::Config {
+                                                        field: f, message, ..
+                                                    } if f == field && axis => message,
+                                                    Error::Config {
+                                                        field: f, message, ..
+                                                    } => format!("field `{f}`: {message}"),
+                                                    other => other.to_string(),
+                                                };
+                                                bad(
+                                                    &if axis {
+                                                        format!("axes.\"{field}\"")
+                                                    } else if experiment.config.is_some() {
+                                                        "config".to_string()
+                                                    } else {
+                                                        "datasets".to_string()
+                                                    },
+                                                    format!(
+                                                        "{}: {problem}; leave such runs out with \
+                                                     [[exclude]] (docs/experiments.md)",
+                                                        the_run()
+                                                    ),
+                                                )
+                                            },
+                                        )?;
+                                    }
                                     let spec = RunSpec {
                                         key: run_key(&run),
                                         index: 0,
@@ -1400,44 +1404,74 @@ impl Plan {
 /// (`run::prepare`), checked when the runs are generated so that a sweep (and its dry run)
 /// refuses them before it writes anything: the iso value within the volume's densities
 /// (`IsoSurface::from_config`), the block size dividing its dimensions
-/// (`blocking::check_block_size`), and the depth file (there, a regular file of the length its
+/// (`blocking::check_block_size`), the depth file (there, a regular file of the length its
 /// header announces, within the memory budget, of the frames' size:
-/// `Scene::check_depth_file`, which reads only its header). The checks that passed are kept,
-/// so each costs once per dataset and value.
+/// `Scene::check_depth_file`, which reads only its header), the memory budget, the voxel word
+/// and the rows the volume needs in SDRAM (`run::check_on_volume`), and with blocking the
+/// active blocks fitting the memory (`run::check_blocked_fit_on_volume`). The checks that
+/// cost a pass over the volume or a file are kept when they pass, so each costs once per
+/// dataset and value.
 #[derive(Default)]
 struct VolumeChecks {
     /// (dataset, iso value's bits) found inside the dataset's densities.
     iso: std::collections::HashSet<(String, u64)>,
     /// Depth files found valid for the frames' size.
     depth_files: std::collections::HashSet<String>,
+    /// Blocked configurations (dataset, transfer function and what decides the block table
+    /// and its fit) found to fit.
+    blocked_fits: std::collections::HashSet<String>,
 }
 
 impl VolumeChecks {
-    /// Checks `config` on `volume` (the dataset `name`); an error with the field it is about.
+    /// Checks `run` on `volume` (its dataset); an error with the field it is about.
     fn check(
         &mut self,
-        config: &HardwareConfig,
-        name: &str,
+        run: &RunDescription,
         volume: &Volume,
-        size: (u32, u32),
-    ) -> std::result::Result<(), (&'static str, Error)> {
+    ) -> std::result::Result<(), (String, Error)> {
+        let config = &run.hardware;
+        fn at(field: &'static str) -> impl Fn(Error) -> (String, Error) {
+            move |e| (field.to_string(), e)
+        }
         if config.iso.enabled {
-            let key = (name.to_string(), config.iso.value.to_bits());
+            let key = (run.dataset.clone(), config.iso.value.to_bits());
             if !self.iso.contains(&key) {
-                crate::iso::IsoSurface::from_config(config, volume)
-                    .map_err(|e| ("iso.value", e))?;
+                crate::iso::IsoSurface::from_config(config, volume).map_err(at("iso.value"))?;
                 self.iso.insert(key);
             }
         }
         if config.blocking.enabled {
             crate::blocking::check_block_size(config.blocking.block_size, volume.dims)
-                .map_err(|e| ("blocking.block_size", e))?;
+                .map_err(at("blocking.block_size"))?;
         }
         if config.geometry.shape == config::GeometryShape::DepthFile
             && !self.depth_files.contains(&config.geometry.file)
         {
-            crate::clip::Scene::check_depth_file(config, size).map_err(|e| ("geometry.file", e))?;
+            crate::clip::Scene::check_depth_file(config, run.size).map_err(at("geometry.file"))?;
             self.depth_files.insert(config.geometry.file.clone());
+        }
+        // The field these name is in the error itself (memory.rows, shading.gradient_bits).
+        let own_field = |e: Error| match &e {
+            Error::Config { field, .. } => (field.clone(), e),
+            _ => (String::new(), e),
+        };
+        crate::run::check_on_volume(run, volume).map_err(own_field)?;
+        if config.blocking.enabled {
+            let key = format!(
+                "{}\0{}\0{:?}\0{:?}\0{:?}\0{}\0{:?}\0{:?}",
+                run.dataset,
+                run.tf,
+                config.blocking,
+                config.memory,
+                config.occupancy.kind,
+                config.classification.lut_bits,
+                run.sample_spacing.to_bits(),
+                (run.model, run.memory),
+            );
+            if !self.blocked_fits.contains(&key) {
+                crate::run::check_blocked_fit_on_volume(run, volume).map_err(own_field)?;
+                self.blocked_fits.insert(key);
+            }
         }
         Ok(())
     }
