@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 
 use vizsim::clip::DepthImage;
 use vizsim::experiment::{self, spec};
+use vizsim::run::Model;
 
 fn scratch(name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!(
@@ -259,7 +260,8 @@ fn a_run_that_fails_during_the_sweep_is_named_and_earlier_results_are_kept() {
     assert_eq!(expansion.runs.len(), 16);
     std::fs::remove_file(&depth).unwrap();
     let out = dir.join("out");
-    let e = experiment::sweep(&expansion, &out, None, None, false)
+    // Swept with `--model step` (every run is one): the hint repeats it.
+    let e = experiment::sweep(&expansion, &out, None, Some(Model::Step), false)
         .expect_err("the depth file is gone")
         .to_string();
     let failed = expansion
@@ -275,6 +277,10 @@ fn a_run_that_fails_during_the_sweep_is_named_and_earlier_results_are_kept() {
         "field `geometry.file`",
         "No such file",
         "the sweep stopped there",
+        &format!(
+            "sweep again into the same folder to run the rest: vizsim sweep during.toml --out {} --model step",
+            out.display()
+        ),
     ] {
         assert!(e.contains(needle), "lacks {needle:?}: {e}");
     }

@@ -281,13 +281,27 @@ fn run_error(expansion: &Expansion, run: &RunSpec, also: &str, error: Error) -> 
 }
 
 /// The error a sweep stops with: what went wrong, then what the folder keeps (every result
-/// written, the failed run's included, stays in `results.jsonl`) and how to go on.
-fn stopped(error: Error, store: &Mutex<ResultStore>, out: &Path) -> Error {
+/// written, the failed run's included, stays in `results.jsonl`) and the command that goes on
+/// (with the sweep's own `--shard` and `--model`: without them it would run other runs too).
+fn stopped(
+    error: Error,
+    store: &Mutex<ResultStore>,
+    expansion: &Expansion,
+    out: &Path,
+    (shard, model): (Option<Shard>, Option<Model>),
+) -> Error {
     let kept = store.lock().map(|s| s.len()).unwrap_or_default();
+    let mut again = format!("vizsim sweep {} --out {}", expansion.source, out.display());
+    if let Some(s) = shard {
+        again += &format!(" --shard {}/{}", s.index, s.count);
+    }
+    if let Some(m) = model {
+        again += &format!(" --model {}", m.name());
+    }
     Error::Invalid(format!(
         "{error}\nthe sweep stopped there; {} keeps the {kept} result{} written so far: fix \
          the run (or leave it out with [[exclude]], docs/experiments.md) and sweep again into \
-         the same folder to run the rest",
+         the same folder to run the rest: {again}",
         out.join(store::RESULTS).display(),
         if kept == 1 { "" } else { "s" },
     ))
@@ -459,7 +473,8 @@ pub fn sweep(
     let store = Mutex::new(store);
     let name = &expansion.experiment.name;
     if expansion.experiment.sequence.is_some() {
-        sweep_sequences(expansion, &pending, &store, &bar).map_err(|e| stopped(e, &store, out))?;
+        sweep_sequences(expansion, &pending, &store, &bar)
+            .map_err(|e| stopped(e, &store, expansion, out, (shard, model)))?;
         bar.finish_and_clear();
         summary.ran = pending.len();
         summary.wall_seconds = start.elapsed().as_secs_f64();
@@ -494,7 +509,7 @@ pub fn sweep(
                 Ok(())
             })
         })
-        .map_err(|e| stopped(e, &store, out))?;
+        .map_err(|e| stopped(e, &store, expansion, out, (shard, model)))?;
     bar.finish_and_clear();
     summary.ran = pending.len();
     summary.timings_reused = reuse.reused.into_inner();
