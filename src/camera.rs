@@ -265,9 +265,18 @@ pub fn check_image_size(width: u32, height: u32) -> Result<()> {
 pub fn parse_image_size(text: &str) -> Result<(u32, u32)> {
     let bad = || Error::Invalid(format!("image size `{text}`: expected WxH, e.g. 256x256"));
     let (w, h) = text.split_once(['x', 'X']).ok_or_else(bad)?;
-    let w: u32 = w.trim().parse().map_err(|_| bad())?;
-    let h: u32 = h.trim().parse().map_err(|_| bad())?;
-    check_image_size(w, h)?;
+    // A side of digits too large for u32 is out of range, not malformed.
+    let side = |s: &str| match s.trim().parse::<u32>() {
+        Ok(v) => Ok(v),
+        Err(e) if *e.kind() == std::num::IntErrorKind::PosOverflow => Ok(u32::MAX),
+        Err(_) => Err(bad()),
+    };
+    let (w, h) = (side(w)?, side(h)?);
+    check_image_size(w, h).map_err(|_| {
+        Error::Invalid(format!(
+            "image size `{text}`: each side must be 1..={MAX_IMAGE_SIDE}"
+        ))
+    })?;
     Ok((w, h))
 }
 

@@ -22,6 +22,13 @@ fn image_sizes_zero_or_absurd_are_errors() {
     assert!(parse_image_size("0x256").is_err());
     assert!(parse_image_size("256x100000").is_err());
     assert!(parse_image_size("256").is_err());
+    // Too large for any integer type: out of range, not malformed.
+    let e = parse_image_size("99999999999x1").unwrap_err().to_string();
+    assert!(e.contains("each side must be 1..="), "{e}");
+    assert!(parse_image_size("-1x1")
+        .unwrap_err()
+        .to_string()
+        .contains("expected WxH"));
     assert_eq!(parse_image_size("320x200").unwrap(), (320, 200));
 }
 
