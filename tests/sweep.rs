@@ -1020,6 +1020,38 @@ fn a_run_twice_in_a_results_file_is_refused_by_every_reader() {
     );
 }
 
+#[test]
+fn a_complete_last_line_that_is_no_result_is_refused_not_cut() {
+    let dir = temp_dir("edited-last-line");
+    let (exp, out) = swept(&dir, &step_only());
+    let (exp_, out_) = (exp.to_str().unwrap(), out.to_str().unwrap());
+    let results = out.join("results.jsonl");
+    let text = std::fs::read_to_string(&results).unwrap();
+    // A whole line a kill cannot write (it ends in a newline): a result without its key,
+    // edited in by hand. Cutting it as torn lost what it held.
+    let edited = text
+        .lines()
+        .next()
+        .unwrap()
+        .replacen("\"key\":", "\"kee\":", 1);
+    let with_edit = format!("{text}{edited}\n");
+    std::fs::write(&results, &with_edit).unwrap();
+    let expected = format!("line {} is not a result line", text.lines().count() + 1);
+    vizsim_fails(&["sweep", exp_, "--out", out_, "--quiet"], &expected);
+    vizsim_fails(&["sweep", exp_, "--out", out_, "--dry-run"], &expected);
+    vizsim_fails(&["table", out_], &expected);
+    assert_eq!(std::fs::read_to_string(&results).unwrap(), with_edit);
+    // A blank last line is still cut like a torn one, and the sweep goes on.
+    std::fs::write(&results, format!("{text}\n")).unwrap();
+    let said = vizsim(&["sweep", exp_, "--out", out_, "--quiet"]);
+    assert!(
+        said.status.success(),
+        "{}",
+        String::from_utf8_lossy(&said.stderr)
+    );
+    assert_eq!(std::fs::read_to_string(&results).unwrap(), text);
+}
+
 /// The highest resident memory of a running process so far (VmHWM), in KiB; None once it
 /// has exited.
 fn peak_kib(pid: u32) -> Option<u64> {

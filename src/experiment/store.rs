@@ -1,7 +1,8 @@
 //! The results store of a sweep folder. `results.jsonl` holds one JSON object per finished
 //! run, appended with one `write` per line and synced, so a killed sweep loses nothing it
-//! finished. On reopening, a torn last line (no newline, or not JSON: the kill hit the write)
-//! is cut off and its run is done again; a malformed line anywhere else is an error.
+//! finished. On reopening, a torn last line (no newline: the kill hit the write; or blank) is
+//! cut off and its run is done again; any other line that is not a result is an error (a
+//! complete last line included: it was edited in, and cutting it would lose what it holds).
 //! `timing.jsonl` holds one wall time per result, written after the result: on reopening it is
 //! made consistent with the results (torn or malformed lines dropped, one entry per result,
 //! `null` for a result whose time a kill lost, none for runs without a result).
@@ -82,7 +83,7 @@ fn stream_keys(path: &Path) -> Result<(HashSet<String>, BTreeSet<String>)> {
             break;
         }
         number += 1;
-        // A malformed line is an error only when another line follows it (else it is torn).
+        // A blank line is an error only when another line follows it (else it is torn).
         if let Some(bad) = malformed.take() {
             return Err(Error::format(
                 path,
@@ -96,9 +97,17 @@ fn stream_keys(path: &Path) -> Result<(HashSet<String>, BTreeSet<String>)> {
         let key = parsed
             .as_ref()
             .and_then(|v| v.get("key").and_then(Value::as_str).map(str::to_string));
+        // As in `scan`: a blank line is an error only when another line follows it (else it
+        // is cut as torn); a complete line that is not a result always is.
         let Some(key) = key else {
-            malformed = Some(number);
-            continue;
+            if line.iter().all(u8::is_ascii_whitespace) {
+                malformed = Some(number);
+                continue;
+            }
+            return Err(Error::format(
+                path,
+                format!("line {number} is not a result line (corrupt file?)"),
+            ));
         };
         if let Some(name) = parsed.as_ref().and_then(|v| v["experiment"].as_str()) {
             if !experiments.contains(name) {
@@ -201,7 +210,11 @@ fn scan(path: &Path) -> Result<(Vec<Line>, u64, bool)> {
                 torn = true;
                 break;
             }
-            (None, Some(_)) if next == bytes.len() => {
+            // A blank last line (an editor's extra newline) is cut like a torn one. A complete
+            // last line that is not a result is not a kill's work (a cut write has no newline
+            // after it): it was edited in, and cutting it would lose what it holds, so it is
+            // refused like any other line below.
+            (None, Some(_)) if next == bytes.len() && line.iter().all(u8::is_ascii_whitespace) => {
                 torn = true;
                 break;
             }
