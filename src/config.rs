@@ -1258,3 +1258,76 @@ pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
         )),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::BTreeSet;
+
+    /// Field paths of a table's leaves (a value that is not a table; arrays of tables such as
+    /// `clip.planes` are one field).
+    fn leaf_paths(table: &toml::Table, prefix: &str, out: &mut Vec<String>) {
+        for (key, value) in table {
+            let path = format!("{prefix}{key}");
+            match value {
+                toml::Value::Table(t) => leaf_paths(t, &format!("{path}."), out),
+                _ => out.push(path),
+            }
+        }
+    }
+
+    /// The fields the first column of docs/config.md's field table names. A name without a
+    /// section (`t_rcd` in "`sdram.cl`, `t_rcd`") belongs to the section named before it in
+    /// its cell.
+    fn documented_fields() -> Vec<String> {
+        let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/config.md"))
+            .expect("docs/config.md");
+        let rows = doc
+            .lines()
+            .skip_while(|l| !l.starts_with("| field | default | allowed | meaning |"))
+            .skip(2)
+            .take_while(|l| l.starts_with('|'));
+        let mut fields = Vec::new();
+        for row in rows {
+            let first_cell = row.split('|').nth(1).unwrap_or_default();
+            let mut section = String::new();
+            for name in first_cell.split('`').skip(1).step_by(2) {
+                match name.rsplit_once('.') {
+                    Some((s, _)) => {
+                        section = s.to_string();
+                        fields.push(name.to_string());
+                    }
+                    None => fields.push(format!("{section}.{name}")),
+                }
+            }
+        }
+        fields
+    }
+
+    /// Every field `--set` can set on the default configuration has its row in
+    /// docs/config.md (default, range, meaning), and every row names such a field: the
+    /// reference cannot drift from the configuration as fields come and go.
+    #[test]
+    fn docs_config_md_documents_every_field_and_only_fields() {
+        let mut table: toml::Table = DEFAULT_TOML.parse().expect("the embedded default");
+        insert_default_sections(&mut table);
+        let mut settable = Vec::new();
+        leaf_paths(&table, "", &mut settable);
+        let settable: BTreeSet<String> = settable.into_iter().collect();
+        let documented: BTreeSet<String> = documented_fields().into_iter().collect();
+        assert!(
+            documented.len() > 60,
+            "the table was not found: {documented:?}"
+        );
+        let undocumented: Vec<&String> = settable.difference(&documented).collect();
+        assert!(
+            undocumented.is_empty(),
+            "fields without a row in docs/config.md: {undocumented:?}"
+        );
+        let unknown: Vec<&String> = documented.difference(&settable).collect();
+        assert!(
+            unknown.is_empty(),
+            "docs/config.md has rows for fields --set does not know: {unknown:?}"
+        );
+    }
+}
