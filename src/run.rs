@@ -633,6 +633,10 @@ pub struct Probes<'a> {
     /// `run` also checks invariant (c) on the frame (`check_error_bound`) into
     /// `RunReport::error_bound`.
     pub check_bound: bool,
+    /// `run` also renders the float reference and compares the frame with it into
+    /// `RunReport::float_reference` (a step or cycle run; the float model's own frame is the
+    /// reference).
+    pub compare_float: bool,
 }
 
 /// The figures of one run. Fields a model does not produce are absent (not zero).
@@ -783,6 +787,10 @@ pub struct RunReport {
     /// once per prepared run).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub leap_values: Option<LeapValueStats>,
+    /// The frame against the float reference of the same description (`Probes::compare_float`):
+    /// the measured error, without the bound `error_bound` adds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub float_reference: Option<crate::compare::Comparison>,
     /// Invariant (c), when the run was asked to check it (`check_error_bound`): the
     /// fixed-point image against the float reference and the bound its widths predict.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -801,11 +809,30 @@ pub fn run(
     let volume = crate::volume::dataset::load(&run.dataset, data_dir)?;
     let prepared = prepare(run, &volume)?;
     let check_bound = probes.check_bound;
+    let compare_float = probes.compare_float && run.model != Model::Float;
     let mut report = execute(run, &prepared, probes)?;
+    drop(prepared);
+    // Rendered once for both (a float run's own frame is the reference).
+    let float = match (check_bound || compare_float) && run.model != Model::Float {
+        true => Some(frame_of(run, &volume, Model::Float)?),
+        false => None,
+    };
+    if let (true, Some(float)) = (compare_float, &float) {
+        let frame = &report.frame;
+        report.float_reference = Some(crate::compare::compare(
+            &frame.pixels,
+            &float.pixels,
+            frame.width,
+            frame.height,
+        )?);
+    }
     if check_bound {
         // The fixed-point image: the step model's, or the cycle model's (equal to it).
-        let fixed = (run.model != Model::Float).then_some(&report.frame);
-        report.error_bound = Some(check_error_bound(run, &volume, fixed)?);
+        let (fixed, float) = match run.model {
+            Model::Float => (None, Some(&report.frame)),
+            _ => (Some(&report.frame), float.as_ref()),
+        };
+        report.error_bound = Some(check_error_bound_with(run, &volume, fixed, float)?);
     }
     Ok(report)
 }
@@ -1049,6 +1076,7 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         // fast the frame's timing was found).
         sim_cycles_per_second: m.cycles.map(|c| c as f64 / wall_seconds.max(1e-12)),
         leap_values,
+        float_reference: None,
         error_bound: None,
         measurements: m,
         frame,
@@ -1140,29 +1168,48 @@ pub fn check_error_bound(
     volume: &Volume,
     fixed: Option<&Frame>,
 ) -> Result<crate::bound::BoundCheck> {
+    check_error_bound_with(run, volume, fixed, None)
+}
+
+/// `run`'s frame from `model` (exact, whatever `run` samples).
+fn frame_of(run: &RunDescription, volume: &Volume, model: Model) -> Result<Frame> {
+    let run = RunDescription {
+        model,
+        sample: None,
+        ..run.clone()
+    };
+    Ok(execute(&run, &prepare(&run, volume)?, Probes::default())?.frame)
+}
+
+/// `check_error_bound` with the float frame when the caller has it.
+fn check_error_bound_with(
+    run: &RunDescription,
+    volume: &Volume,
+    fixed: Option<&Frame>,
+    float: Option<&Frame>,
+) -> Result<crate::bound::BoundCheck> {
     let settings = run.settings();
     if let Some(reason) = crate::bound::unsupported(&run.hardware) {
         return Err(Error::Invalid(reason));
     }
-    let frame_of = |model: Model| -> Result<Frame> {
-        let run = RunDescription {
-            model,
-            sample: None,
-            ..run.clone()
-        };
-        Ok(execute(&run, &prepare(&run, volume)?, Probes::default())?.frame)
-    };
     let rendered;
     let fixed = match fixed {
         Some(frame) => frame,
         None => {
-            rendered = frame_of(Model::Step)?;
+            rendered = frame_of(run, volume, Model::Step)?;
             &rendered
         }
     };
-    let float = frame_of(Model::Float)?;
+    let rendered_float;
+    let float = match float {
+        Some(frame) => frame,
+        None => {
+            rendered_float = frame_of(run, volume, Model::Float)?;
+            &rendered_float
+        }
+    };
     let tf = transfer::resolve_for(&run.tf, volume)?;
     let bound = crate::bound::ErrorBound::new(volume, &tf, &settings, &run.hardware)?
         .predict(&run.camera(volume)?);
-    crate::bound::check(fixed, &float, &bound)
+    crate::bound::check(fixed, float, &bound)
 }

@@ -1971,3 +1971,59 @@ fn precision_sweeps_only_widths_the_base_allows() {
         .collect();
     assert_eq!(increments, [4, 5, 6, 7, 8]);
 }
+
+/// `render --model fixed` and `sim` compare their frame with the float reference on every run
+/// (the mission's "is the fixed-point image still right?"), in one line and in `--json`'s
+/// `float_reference`: the same figures `vizsim compare` gives for their PNG against the float
+/// render's. The float render itself has no reference to compare with.
+#[test]
+fn fixed_and_cycle_runs_are_compared_with_the_float_reference() {
+    let dir = scratch("float-reference");
+    let path = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    let frame = [
+        "--dataset",
+        "phantom:metaballs:32",
+        "--size",
+        "16x16",
+        "--view",
+        "orbit:3/72",
+    ];
+    let float = succeeds(
+        &[
+            &["render"][..],
+            &frame[..],
+            &["-o", &path("float.png"), "--json", &path("float.json")],
+        ]
+        .concat(),
+    );
+    assert!(!String::from_utf8_lossy(&float.stdout).contains("float reference"));
+    let float_json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path("float.json")).unwrap()).unwrap();
+    assert!(float_json.get("float_reference").is_none());
+    for (name, command) in [
+        (
+            "fixed",
+            &["render", "--model", "fixed", "--subcube", "4"][..],
+        ),
+        ("cycle", &["sim", "--subcube", "4"][..]),
+    ] {
+        let (png, json) = (path(&format!("{name}.png")), path(&format!("{name}.json")));
+        let out = succeeds(&[command, &frame[..], &["-o", &png, "--json", &json]].concat());
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            stdout.contains("fixed vs float reference: max error (R, G, B, A)"),
+            "{name}: {stdout}"
+        );
+        let compared = path(&format!("{name}-compare.json"));
+        succeeds(&["compare", &png, &path("float.png"), "--json", &compared]);
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let expected: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&compared).unwrap()).unwrap();
+        assert_eq!(report["float_reference"], expected, "{name}");
+        assert_eq!(
+            expected["identical"], false,
+            "{name}: the test needs a difference"
+        );
+    }
+}

@@ -538,6 +538,33 @@ pub fn bound_line(report: &vizsim::run::RunReport) -> Result<Option<String>> {
     Ok(Some(format!("invariant (c): {}", check.describe())))
 }
 
+/// The fixed-point frame against the float reference (`Probes::compare_float`), unless the
+/// bound's line says it already; None for a float run.
+pub fn reference_line(report: &vizsim::run::RunReport) -> Option<String> {
+    let c = report
+        .float_reference
+        .as_ref()
+        .filter(|_| report.error_bound.is_none())?;
+    let e = c.max_abs_error;
+    Some(if c.identical {
+        "fixed vs float reference: identical images".to_string()
+    } else {
+        format!(
+            "fixed vs float reference: max error (R, G, B, A) {} {} {} {} levels, mean {:.3}, \
+             PSNR {:.1} dB, {} of {} pixels more than 1 level off (--check-bound: each pixel \
+             against the bound its bit widths predict)",
+            e[0],
+            e[1],
+            e[2],
+            e[3],
+            c.mean_abs_error,
+            c.psnr_db,
+            c.pixels_over_1_lsb,
+            c.width as u64 * c.height as u64
+        )
+    })
+}
+
 /// The lines `render` and `sim` print under their summary for the features a run has on (ray
 /// start and end, iso-surface mode, a leaping structure's memory, blocking), in that order.
 pub fn feature_lines(config: &HardwareConfig, m: &vizsim::run::Measurements) -> Vec<String> {

@@ -85,6 +85,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         let mut said = String::new();
         let probes = Probes {
             check_bound: args.check_bound,
+            compare_float: true,
             ..Probes::default()
         };
         let report = run::run(&desc, args.frame.data.dir()?.as_deref(), probes)?;
@@ -123,7 +124,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         for line in super::feature_lines(&report.run.hardware, &report.measurements) {
             writeln!(said, "{line}")?;
         }
-        if let Some(line) = bound_line {
+        for line in super::reference_line(&report).into_iter().chain(bound_line) {
             writeln!(said, "{line}")?;
         }
         if let Some(json) = &args.json {

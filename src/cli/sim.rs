@@ -157,6 +157,7 @@ pub fn run(args: SimArgs) -> Result<()> {
             waveform: waveform.as_mut(),
             command_trace: command_trace.as_mut(),
             check_bound: args.check_bound,
+            compare_float: true,
         };
         let report = run::run(&desc, args.frame.data.dir()?.as_deref(), probes)?;
         let bound_line = super::bound_line(&report)?;
@@ -266,7 +267,7 @@ pub fn run(args: SimArgs) -> Result<()> {
         for line in super::feature_lines(&report.run.hardware, &report.measurements) {
             writeln!(said, "{line}")?;
         }
-        if let Some(line) = bound_line {
+        for line in super::reference_line(&report).into_iter().chain(bound_line) {
             writeln!(said, "{line}")?;
         }
         if let Some(path) = &args.output {
