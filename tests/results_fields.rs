@@ -4,9 +4,15 @@
 //! field the reference lacks, and every documented field is written by one of them. A
 //! statistic added or renamed without its line in the reference fails here (DRAMsim3's docs
 //! drifted from its counters; house style).
+//!
+//! The same for the `--json` report of `render` and `sim`: its fields that are not a result
+//! line's have their row in "The --json report of render and sim", and reports of every kind
+//! (both memories, sampled, each leaping structure, iso, bricks, blocking, the bound check)
+//! write every field that table documents.
 
 use std::collections::BTreeSet;
 use std::path::Path;
+use std::process::Command;
 
 use vizsim::experiment::{self, spec};
 
@@ -54,20 +60,32 @@ fn names_in(text: &str, into: &mut BTreeSet<String>) {
     }
 }
 
+/// The rows of the first `| field | meaning |` table after the line `heading` of
+/// docs/experiments.md, as (first column, second column).
+fn table_rows(heading: &str) -> Vec<(String, String)> {
+    let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/experiments.md"))
+        .expect("docs/experiments.md");
+    doc.lines()
+        .skip_while(|l| *l != heading)
+        .skip_while(|l| !l.starts_with("| field | meaning |"))
+        .skip(2)
+        .take_while(|l| l.starts_with('|'))
+        .map(|row| {
+            let mut cells = row.split('|').skip(1);
+            let field = cells.next().unwrap_or_default().to_string();
+            (field, cells.next().unwrap_or_default().to_string())
+        })
+        .collect()
+}
+
 /// The fields docs/experiments.md documents: the first column of the "Results" table, and the
 /// backticked names of the "Result line of a step" paragraph that are written as fields.
 fn documented() -> (BTreeSet<String>, BTreeSet<String>) {
     let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/experiments.md"))
         .expect("docs/experiments.md");
     let mut table = BTreeSet::new();
-    for row in doc
-        .lines()
-        .skip_while(|l| *l != "## Results")
-        .skip_while(|l| !l.starts_with("| field | meaning |"))
-        .skip(2)
-        .take_while(|l| l.starts_with('|'))
-    {
-        names_in(row.split('|').nth(1).unwrap_or_default(), &mut table);
+    for (field, _) in table_rows("## Results") {
+        names_in(&field, &mut table);
     }
     let paragraph: String = doc
         .lines()
@@ -157,6 +175,121 @@ fn every_result_field_is_documented_and_every_documented_field_is_written() {
     assert!(
         never_written.is_empty(),
         "docs/experiments.md documents result fields no run writes: {never_written:?}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The `--json` report of `vizsim ARGS` on a small phantom (8×8 pixels of a sphere of 16³),
+/// written into `dir` as `name.json`.
+fn report(dir: &Path, name: &str, args: &[&str]) -> serde_json::Value {
+    let json = dir.join(format!("{name}.json"));
+    let mut command = Command::new(env!("CARGO_BIN_EXE_vizsim"));
+    command
+        .args(args)
+        .args(["--dataset", "phantom:sphere:16", "--size", "8x8", "--json"])
+        .arg(&json);
+    if args[0] == "render" {
+        command.arg("--output").arg(dir.join(format!("{name}.png")));
+    }
+    let out = command.output().expect("vizsim runs");
+    assert!(
+        out.status.success(),
+        "{name}: vizsim {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_str(&std::fs::read_to_string(&json).expect("the report")).expect("JSON")
+}
+
+#[test]
+fn every_json_report_field_is_documented_and_every_documented_field_is_written() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("vizsim-report-fields-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let runs: [(&str, &[&str]); 9] = [
+        ("float", &["render"]),
+        ("fixed", &["render", "--model", "fixed", "--check-bound"]),
+        ("sdram-map", &["sim", "--subcube", "4", "--hierarchy"]),
+        ("ideal", &["sim", "--memory", "ideal"]),
+        ("sampled", &["sim", "--sample", "0.5"]),
+        (
+            "leap-values",
+            &[
+                "sim",
+                "--set",
+                "occupancy.structure=leap-values",
+                "--check-bound",
+            ],
+        ),
+        (
+            "distance",
+            &["sim", "--set", "occupancy.structure=distance"],
+        ),
+        (
+            "iso-bricks",
+            &["sim", "--set", "iso.enabled=true", "--bricks", "4"],
+        ),
+        (
+            "blocking",
+            &[
+                "sim",
+                "--set",
+                "blocking.enabled=true",
+                "--set",
+                "blocking.block_size=8",
+            ],
+        ),
+    ];
+    let (mut written, mut module_fields) = (BTreeSet::new(), BTreeSet::new());
+    for (name, args) in runs {
+        let report = report(&dir, name, args);
+        // One level into every object: `run.hardware` is the configuration (docs/config.md),
+        // and the Measurements' objects are the Results table's.
+        field_paths(&report, &mut written);
+        for module in report["memory_stats"]["modules"]
+            .as_array()
+            .into_iter()
+            .flatten()
+        {
+            module_fields.extend(module.as_object().expect("a module").keys().cloned());
+        }
+    }
+    let (mut json_table, mut memory_meaning) = (BTreeSet::new(), String::new());
+    for (field, meaning) in table_rows("## The --json report of render and sim") {
+        names_in(&field, &mut json_table);
+        if field.trim().starts_with("`memory_stats{") {
+            memory_meaning = meaning;
+        }
+    }
+    assert!(
+        json_table.len() > 60,
+        "the --json report's table was not found: {json_table:?}"
+    );
+    let (results_table, _) = documented();
+    let documented: BTreeSet<String> = json_table.union(&results_table).cloned().collect();
+    let undocumented: Vec<&String> = written.difference(&documented).collect();
+    assert!(
+        undocumented.is_empty(),
+        "--json report fields missing from docs/experiments.md (\"The --json report of render \
+         and sim\", or the Results table for the Measurements): {undocumented:?}"
+    );
+    let never_written: Vec<&String> = json_table.difference(&written).collect();
+    assert!(
+        never_written.is_empty(),
+        "docs/experiments.md documents --json report fields no report writes: {never_written:?}"
+    );
+    // An entry of `memory_stats.modules` is described in the meaning of the `memory_stats` row.
+    assert!(
+        !module_fields.is_empty(),
+        "no report wrote memory_stats.modules"
+    );
+    let mut described = BTreeSet::new();
+    names_in(&memory_meaning, &mut described);
+    let undescribed: Vec<&String> = module_fields.difference(&described).collect();
+    assert!(
+        undescribed.is_empty(),
+        "fields of a memory_stats.modules entry missing from the memory_stats row: \
+         {undescribed:?}"
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
