@@ -1,8 +1,9 @@
 //! The results store of a sweep folder. `results.jsonl` holds one JSON object per finished
 //! run, appended with one `write` per line and synced, so a killed sweep loses nothing it
-//! finished. On reopening, a torn last line (no newline: the kill hit the write; or blank) is
-//! cut off and its run is done again; any other line that is not a result is an error (a
-//! complete last line included: it was edited in, and cutting it would lose what it holds).
+//! finished. On reopening, a torn last line (a result cut short, with or without a newline
+//! after it, or a blank line) is cut off and its run is done again; any other line that is not
+//! a result is an error (a last line included, such as valid JSON without a key: it was edited
+//! in, and cutting it would lose what it holds).
 //! `timing.jsonl` holds one wall time per result, written after the result: on reopening it is
 //! made consistent with the results (torn or malformed lines dropped, one entry per result,
 //! `null` for a result whose time a kill lost, none for runs without a result).
@@ -83,7 +84,7 @@ fn stream_keys(path: &Path) -> Result<(HashSet<String>, BTreeSet<String>)> {
             break;
         }
         number += 1;
-        // A blank line is an error only when another line follows it (else it is torn).
+        // A cut line is an error only when another line follows it (else it is torn).
         if let Some(bad) = malformed.take() {
             return Err(Error::format(
                 path,
@@ -97,10 +98,10 @@ fn stream_keys(path: &Path) -> Result<(HashSet<String>, BTreeSet<String>)> {
         let key = parsed
             .as_ref()
             .and_then(|v| v.get("key").and_then(Value::as_str).map(str::to_string));
-        // As in `scan`: a blank line is an error only when another line follows it (else it
-        // is cut as torn); a complete line that is not a result always is.
+        // As in `scan`: a line a cut write can leave is an error only when another line
+        // follows it (else it is torn); any other line that is not a result always is.
         let Some(key) = key else {
-            if line.iter().all(u8::is_ascii_whitespace) {
+            if could_be_torn(&line) {
                 malformed = Some(number);
                 continue;
             }
@@ -166,6 +167,14 @@ fn repeated_run(number: usize, key: &str, first: usize) -> String {
 /// A parsed result line and its text.
 type Line = (Value, String);
 
+/// Whether a line that is not a result can be what a write cut short left: blank, or the start
+/// of a JSON object that does not parse (a result line cut anywhere before its end). A line
+/// that parses, or does not start as an object, was written as it is.
+fn could_be_torn(line: &[u8]) -> bool {
+    let text = line.trim_ascii();
+    text.is_empty() || (text.starts_with(b"{") && serde_json::from_slice::<Value>(text).is_err())
+}
+
 /// Lines, the byte length of the complete part of the file, and whether a torn last line
 /// follows it.
 fn scan(path: &Path) -> Result<(Vec<Line>, u64, bool)> {
@@ -210,11 +219,10 @@ fn scan(path: &Path) -> Result<(Vec<Line>, u64, bool)> {
                 torn = true;
                 break;
             }
-            // A blank last line (an editor's extra newline) is cut like a torn one. A complete
-            // last line that is not a result is not a kill's work (a cut write has no newline
-            // after it): it was edited in, and cutting it would lose what it holds, so it is
-            // refused like any other line below.
-            (None, Some(_)) if next == bytes.len() && line.iter().all(u8::is_ascii_whitespace) => {
+            // A last line a cut write can leave (`could_be_torn`) is cut, with or without a
+            // newline after it; any other last line that is not a result was edited in, and
+            // cutting it would lose what it holds, so it is refused like any line below.
+            (None, Some(_)) if next == bytes.len() && could_be_torn(line) => {
                 torn = true;
                 break;
             }
