@@ -203,7 +203,7 @@ pub fn run(args: SimArgs) -> Result<()> {
             said,
         "{}: {} cycles = {:.3} ms/frame = {} at {} MHz; {}, {} ray selection, ERT {}; \
          {} steps ({} samples of which {} leap samples, {} leaps), {} discarded after ERT{memory_line}; \
-         stalls: queue empty {}, skip busy {}, memory {}, buffer full {}{}; {:.1} M cycles/s simulated",
+         stalls: queue empty {}, skip busy {}, memory {}, buffer full {}{}; {}",
         report.volume,
         cycles,
         frame_time_ns / 1e6,
@@ -222,7 +222,7 @@ pub fn run(args: SimArgs) -> Result<()> {
         stalls.memory,
         stalls.compositing_buffer_full,
         volume_word_stalls(&stalls),
-        report.sim_cycles_per_second.unwrap_or_default() / 1e6
+        simulation_rate(&report)
     )?;
         let unit_rays = report.run.sample.map_or(0, |s| s.unit_rays);
         if let (Some(e), Some(ci)) = (&report.sampling, m.cycles_ci95) {
@@ -285,6 +285,20 @@ pub fn run(args: SimArgs) -> Result<()> {
         let _ = write!(std::io::stderr(), "{warned}");
     }
     Ok(())
+}
+
+/// How fast the frame was simulated. A sampled frame simulates only part of its cycles: its
+/// rate of frame cycles timed per second (`sim_cycles_per_second`) is not a simulation speed,
+/// so the cycles it did simulate are given too.
+fn simulation_rate(report: &vizsim::run::RunReport) -> String {
+    let rate = report.sim_cycles_per_second.unwrap_or_default() / 1e6;
+    match &report.sampling {
+        Some(e) => format!(
+            "{rate:.1} M frame cycles/s timed ({:.1} M cycles/s simulated)",
+            e.simulated_cycles as f64 / report.wall_seconds.max(1e-12) / 1e6
+        ),
+        None => format!("{rate:.1} M cycles/s simulated"),
+    }
 }
 
 /// Stalls on words from volume memory, shown only for the structures that have them.
