@@ -26,6 +26,7 @@ use crate::arch::voxel_memory::{IdealMemory, VoxelMemory};
 use crate::blocking::{BlockTable, BlockingStats};
 use crate::bricks::RayRangeStats;
 use crate::camera::{check_image_size, Camera, Projection, View};
+use crate::compare::Comparison;
 use crate::config::{HardwareConfig, LeapRegions, LeapStructure, RaySelection};
 use crate::error::{Error, Result};
 use crate::functional::leaping::ConfiguredSkipper;
@@ -790,7 +791,7 @@ pub struct RunReport {
     /// The frame against the float reference of the same description (`Probes::compare_float`):
     /// the measured error, without the bound `error_bound` adds.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub float_reference: Option<crate::compare::Comparison>,
+    pub float_reference: Option<Comparison>,
     /// Invariant (c), when the run was asked to check it (`check_error_bound`): the
     /// fixed-point image against the float reference and the bound its widths predict.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -818,13 +819,7 @@ pub fn run(
         false => None,
     };
     if let (true, Some(float)) = (compare_float, &float) {
-        let frame = &report.frame;
-        report.float_reference = Some(crate::compare::compare(
-            &frame.pixels,
-            &float.pixels,
-            frame.width,
-            frame.height,
-        )?);
+        report.float_reference = Some(compare_frames(&report.frame, float)?);
     }
     if check_bound {
         // The fixed-point image: the step model's, or the cycle model's (equal to it).
@@ -1169,6 +1164,20 @@ pub fn check_error_bound(
     fixed: Option<&Frame>,
 ) -> Result<crate::bound::BoundCheck> {
     check_error_bound_with(run, volume, fixed, None)
+}
+
+/// `run`'s fixed-point frame (the step model's, equal to the cycle model's) against its float
+/// reference, both rendered here: what a sweep's line carries with the experiment's
+/// `float_reference` (a twin that reused another run's timing has no frame of its own).
+pub fn compare_with_float(run: &RunDescription, volume: &Volume) -> Result<Comparison> {
+    compare_frames(
+        &frame_of(run, volume, Model::Step)?,
+        &frame_of(run, volume, Model::Float)?,
+    )
+}
+
+fn compare_frames(fixed: &Frame, float: &Frame) -> Result<Comparison> {
+    crate::compare::compare(&fixed.pixels, &float.pixels, fixed.width, fixed.height)
 }
 
 /// `run`'s frame from `model` (exact, whatever `run` samples).

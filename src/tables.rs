@@ -93,6 +93,15 @@ pub enum Metric {
     QueueEmpty,
     /// Positions in the box that the rays' start and end cut (bricks, clipping), %.
     PositionsCut,
+    /// Mean absolute difference from the float reference's image, 8-bit levels over all
+    /// channels (experiments with `float_reference = true`).
+    ImageError,
+    /// PSNR against the float reference's image over R, G, B, dB (experiments with
+    /// `float_reference = true`; a frame equal to its reference has none).
+    Psnr,
+    /// Pixels with a channel more than 1 level off the float reference's image (experiments
+    /// with `float_reference = true`).
+    PixelsOff,
 }
 
 impl Metric {
@@ -112,6 +121,9 @@ impl Metric {
             Metric::Skippable => "skippable sub-cubes (%)",
             Metric::QueueEmpty => "cycles with the ray queue empty per frame",
             Metric::PositionsCut => "positions cut by ray start and end (%)",
+            Metric::ImageError => "mean error against the float reference (8-bit levels)",
+            Metric::Psnr => "PSNR against the float reference (dB)",
+            Metric::PixelsOff => "pixels more than 1 level off the float reference",
         }
     }
 
@@ -131,6 +143,9 @@ impl Metric {
             Metric::Skippable => "skippable",
             Metric::QueueEmpty => "queue-empty",
             Metric::PositionsCut => "positions-cut",
+            Metric::ImageError => "image-error",
+            Metric::Psnr => "psnr",
+            Metric::PixelsOff => "pixels-off",
         }
     }
 
@@ -158,6 +173,9 @@ impl Metric {
                 &["ray_range", "positions_cut"],
                 &["ray_range", "positions_in_box"],
             ],
+            Metric::ImageError => &[&["float_reference", "mean_abs_error"]],
+            Metric::Psnr => &[&["float_reference", "psnr_db"]],
+            Metric::PixelsOff => &[&["float_reference", "pixels_over_1_lsb"]],
         }
     }
 

@@ -1,9 +1,9 @@
 //! The fields of a result line are the ones docs/experiments.md documents ("Results", and a
 //! sequence step's in "Sequences"): a sweep of every kind of run (both models, every leaping
-//! structure, bricks with traversal and table, iso, blocking, sampled, a sequence) writes no
-//! field the reference lacks, and every documented field is written by one of them. A
-//! statistic added or renamed without its line in the reference fails here (DRAMsim3's docs
-//! drifted from its counters; house style).
+//! structure, bricks with traversal and table, iso, blocking with the float reference,
+//! sampled, a sequence) writes no field the reference lacks, and every documented field is
+//! written by one of them. A statistic added or renamed without its line in the reference
+//! fails here (DRAMsim3's docs drifted from its counters; house style).
 //!
 //! The same for the `--json` report of `render` and `sim`: its fields that are not a result
 //! line's have their row in "The --json report of render and sim", and reports of every kind
@@ -117,8 +117,9 @@ fn every_result_field_is_documented_and_every_documented_field_is_written() {
             "phantom:sphere:16",
             r#""none""#,
             r#""step", "cycle""#,
+            // With the image against the float reference in every line.
             &format!(
-                "{frames}\n[axes]\n\"blocking.enabled\" = [true]\n\"blocking.block_size\" = [8]"
+                "float_reference = true\n{frames}\n[axes]\n\"blocking.enabled\" = [true]\n\"blocking.block_size\" = [8]"
             ),
         ),
         experiment(

@@ -1846,3 +1846,122 @@ fn merge_joins_folders_swept_with_different_models() {
         "different versions of experiment `models`",
     );
 }
+
+/// `float_reference = true`: every line carries its own image against the float reference, as
+/// `sim --json` gives it for the run, twins that reuse another run's timing included (their
+/// image is their own: the lines equal those of sweeping each transfer function alone, where
+/// nothing is reused); the keys differ from the runs without it; a sequence refuses it.
+#[test]
+fn lines_with_the_float_reference_carry_each_run_s_own_image_error() {
+    let dir = temp_dir("float-reference");
+    let text = |tf: &str, with: bool| {
+        format!(
+            r#"
+name = "ci-float-reference"
+datasets = ["phantom:metaballs:32"]
+tf = {tf}
+modes = ["none", "ert+leap4"]
+models = ["step", "cycle"]
+{}
+[frames]
+orbit = 72
+select = [0, 7]
+size = "24x24"
+"#,
+            if with { "float_reference = true" } else { "" }
+        )
+    };
+    let (said, together) = sweep_in(&dir.join("both"), &text(r#"["zero", "class"]"#, true), "1");
+    assert!(said.contains("took the timing"), "twins reuse: {said}");
+    let mut separate = Vec::new();
+    for tf in ["zero", "class"] {
+        let (said, lines) = sweep_in(&dir.join(tf), &text(&format!(r#"["{tf}"]"#), true), "2");
+        assert!(!said.contains("took the timing"), "{said}");
+        separate.extend(lines);
+    }
+    separate.sort();
+    assert_eq!(together, separate);
+    let lines: Vec<serde_json::Value> = together
+        .iter()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 16);
+    // The line's figures are those `sim --json` reports for the run.
+    let line = lines
+        .iter()
+        .find(|l| {
+            l["model"] == "cycle" && l["tf"] == "zero" && l["mode"] == "none" && l["frame"] == 7
+        })
+        .unwrap();
+    let json = dir.join("sim.json");
+    vizsim_ok(&[
+        "sim",
+        "--dataset",
+        "phantom:metaballs:32",
+        "--tf",
+        "zero",
+        "--no-ert",
+        "--view",
+        "orbit:7/72",
+        "--size",
+        "24x24",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(report["cycles"], line["cycles"], "the same run");
+    assert_eq!(line["float_reference"], report["float_reference"]);
+    // The two transfer functions' images differ from their references differently.
+    let of_tf = |tf: &str| {
+        lines
+            .iter()
+            .find(|l| {
+                l["model"] == "cycle" && l["tf"] == tf && l["mode"] == "none" && l["frame"] == 7
+            })
+            .unwrap()["float_reference"]
+            .clone()
+    };
+    assert_ne!(of_tf("zero"), of_tf("class"));
+    assert!(lines.iter().all(|l| l["float_reference"]["width"] == 24));
+    // Without the option: the same runs under other keys, and no float_reference.
+    let (_, without) = sweep_in(
+        &dir.join("without"),
+        &text(r#"["zero", "class"]"#, false),
+        "2",
+    );
+    let keys = |lines: &[String]| -> std::collections::BTreeSet<String> {
+        lines
+            .iter()
+            .map(|l| {
+                serde_json::from_str::<serde_json::Value>(l).unwrap()["key"]
+                    .as_str()
+                    .unwrap()
+                    .to_string()
+            })
+            .collect()
+    };
+    assert!(keys(&together).is_disjoint(&keys(&without)));
+    assert!(without.iter().all(|l| !l.contains("float_reference")));
+    // A sequence's steps have no reference.
+    let sequence = text(r#"["class"]"#, true)
+        .replace("phantom:metaballs:32", "phantom:metaballs:16")
+        .replace(
+            r#"modes = ["none", "ert+leap4"]"#,
+            r#"modes = ["ert+leap4"]"#,
+        )
+        .replace(r#"models = ["step", "cycle"]"#, r#"models = ["cycle"]"#)
+        + "[sequence]\nsteps = 2\n";
+    let exp = write_experiment(&dir, &sequence);
+    vizsim_fails(
+        &[
+            "sweep",
+            exp.to_str().unwrap(),
+            "--out",
+            dir.join("seq").to_str().unwrap(),
+            "--dry-run",
+        ],
+        "float_reference",
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

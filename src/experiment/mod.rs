@@ -19,6 +19,7 @@ use serde_json::{json, Value};
 use crate::dynamic::{run_sequence, SequenceOptions, StepView};
 use crate::error::{Error, Result};
 use crate::run::{self, Measurements, Prepared, Probes};
+use crate::volume::Volume;
 use spec::{dataset_label, Expansion, Model, RunSpec};
 use store::ResultStore;
 
@@ -250,6 +251,19 @@ impl TimingReuse {
         };
         Ok(line_of(run, experiment, prepared, measured))
     }
+}
+
+/// With the experiment's `float_reference`, the line with the run's own image against the float
+/// reference (after the measurements, which a twin may have taken from another run: its image
+/// is its own).
+fn with_float_reference(mut line: Value, run: &RunSpec, volume: &Volume) -> Result<Value> {
+    if run.float_reference {
+        let comparison = run::compare_with_float(&run.run, volume)?;
+        line.as_object_mut()
+            .expect("object")
+            .insert("float_reference".into(), json!(comparison));
+    }
+    Ok(line)
 }
 
 /// Appends a finished run's line (and its wall time) to the shared store.
@@ -503,6 +517,7 @@ pub fn sweep(
                 let t = Instant::now();
                 let line = reuse
                     .run_frame(run, &prepared, name)
+                    .and_then(|line| with_float_reference(line, run, volume))
                     .map_err(|e| run_error(expansion, run, "", e))?;
                 append(&store, &run.key, &line, t.elapsed().as_secs_f64())?;
                 bar.inc(1);

@@ -61,6 +61,12 @@ pub struct ExperimentFile {
     /// runs'. Written out only when given.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sample: Option<f64>,
+    /// Every run's line also carries `float_reference`: its image against the float reference
+    /// of the same run (max, mean error, PSNR), so that a sweep of bit widths tabulates the
+    /// image error beside the cycles. The runs' keys differ from those without it. Written out
+    /// only when true.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub float_reference: bool,
 }
 
 /// `[sequence]`: the time axis of a dynamic experiment.
@@ -366,6 +372,10 @@ pub struct RunSpec {
     /// Sequence experiments: the time step this run is. Serialised only when set.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sequence: Option<StepSpec>,
+    /// The line also carries the image against the float reference (the experiment's
+    /// `float_reference`). Serialised only when set.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub float_reference: bool,
 }
 
 impl RunSpec {
@@ -578,6 +588,14 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
             "sample",
             "a sequence's frames are simulated exactly; sampling applies to experiments \
              without [sequence]"
+                .into(),
+        ));
+    }
+    if experiment.float_reference && experiment.sequence.is_some() {
+        return Err(bad(
+            "float_reference",
+            "a sequence's steps are compared with nothing; the image against the float \
+             reference applies to experiments without [sequence]"
                 .into(),
         ));
     }
@@ -1360,8 +1378,13 @@ impl Plan {
                                             },
                                         )?;
                                     }
+                                    let float_reference = experiment.float_reference;
                                     let spec = RunSpec {
-                                        key: run_key(&run),
+                                        key: match float_reference {
+                                            true => float_reference_key(&run),
+                                            false => run_key(&run),
+                                        },
+                                        float_reference,
                                         index: 0,
                                         mode: *mode,
                                         frame,
@@ -1483,6 +1506,18 @@ impl VolumeChecks {
 /// of a run, so keys of earlier results stay valid.
 pub fn run_key(run: &RunDescription) -> String {
     hash_key(&canonical_run(run))
+}
+
+/// The key of a run whose line also carries its image against the float reference: the run's
+/// identity (as `run_key`) and that, so that its line and the line without it never share a
+/// key.
+pub fn float_reference_key(run: &RunDescription) -> String {
+    let mut canonical = canonical_run(run);
+    canonical
+        .as_object_mut()
+        .expect("object")
+        .insert("float_reference".into(), serde_json::Value::Bool(true));
+    hash_key(&canonical)
 }
 
 /// The key of one time step of a sequence: the run's identity (as `run_key`) and where in which
