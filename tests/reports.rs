@@ -1,5 +1,5 @@
 //! Reports regenerate: the small committed reports (precision on fuel and neghip with their
-//! charts, the quick experiment's tables) are made again here, by the command each names, and
+//! charts, the quick and bit-widths experiments' tables) are made again here, by the command each names, and
 //! must equal the committed copies byte for byte. A stale report (after a transfer function, a
 //! model, a table format or the chart layout changed) fails this test; regenerate it with the
 //! command it names.
@@ -104,39 +104,45 @@ fn precision_reports_of_fuel_and_neghip_are_current() {
     );
 }
 
-#[test]
-fn quick_experiment_tables_are_current() {
+/// Sweeps `configs/experiments/NAME.toml` into `runs/NAME` in a scratch folder, tabulates it with
+/// `table` (the arguments after the folder), and compares with the committed `reports/REPORT`.
+fn experiment_tables_are_current(name: &str, table_args: &[&str], report: &str) {
     let Some(data) = common::data_dir() else {
-        eprintln!("SKIP quick_experiment_tables_are_current: no data directory");
+        eprintln!("SKIP the {name} experiment's tables: no data directory");
         return;
     };
-    let cwd = scratch("quick");
+    let cwd = scratch(name);
+    let file = format!("configs/experiments/{name}.toml");
     std::fs::create_dir_all(cwd.join("configs/experiments")).unwrap();
-    std::fs::copy(
-        repo().join("configs/experiments/quick.toml"),
-        cwd.join("configs/experiments/quick.toml"),
-    )
-    .unwrap();
-    vizsim_in(
-        &cwd,
-        &data,
+    std::fs::copy(repo().join(&file), cwd.join(&file)).unwrap();
+    let runs = format!("runs/{name}");
+    vizsim_in(&cwd, &data, &["sweep", &file, "--out", &runs, "--quiet"]);
+    let out = format!("reports/{report}");
+    let mut args = vec!["table", runs.as_str()];
+    args.extend_from_slice(table_args);
+    args.extend_from_slice(&["--out", &out]);
+    vizsim_in(&cwd, &data, &args);
+    assert_same_files(&repo().join(&out), &cwd.join(&out), &[".md", ".csv"], &[]);
+}
+
+#[test]
+fn quick_experiment_tables_are_current() {
+    experiment_tables_are_current("quick", &[], "quick/tables");
+}
+
+/// The experiment with the image against the float reference in every line.
+#[test]
+fn bit_widths_tables_are_current() {
+    experiment_tables_are_current(
+        "bit-widths",
         &[
-            "sweep",
-            "configs/experiments/quick.toml",
-            "--out",
-            "runs/quick",
-            "--quiet",
+            "--rows",
+            "dataset,skip.reciprocal_bits,interpolation.weight_bits",
+            "--columns",
+            "compositing.accumulator_bits",
+            "--metric",
+            "psnr,image-error,cycles",
         ],
-    );
-    vizsim_in(
-        &cwd,
-        &data,
-        &["table", "runs/quick", "--out", "reports/quick/tables"],
-    );
-    assert_same_files(
-        &repo().join("reports/quick/tables"),
-        &cwd.join("reports/quick/tables"),
-        &[".md", ".csv"],
-        &[],
+        "bit-widths/tables",
     );
 }
