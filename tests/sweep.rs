@@ -1943,6 +1943,30 @@ size = "24x24"
     };
     assert!(keys(&together).is_disjoint(&keys(&without)));
     assert!(without.iter().all(|l| !l.contains("float_reference")));
+    // Tabulating the error of a folder without it says where it comes from.
+    vizsim_fails(
+        &[
+            "table",
+            dir.join("without/out").to_str().unwrap(),
+            "--metric",
+            "psnr",
+        ],
+        "come from experiments with float_reference = true",
+    );
+    let tables = dir.join("tables");
+    vizsim_ok(&[
+        "table",
+        dir.join("both/out").to_str().unwrap(),
+        "--metric",
+        "psnr,image-error,pixels-off",
+        "--out",
+        tables.to_str().unwrap(),
+    ]);
+    let psnr = std::fs::read_to_string(tables.join("cycle-psnr.md")).unwrap();
+    assert!(
+        psnr.contains("PSNR against the float reference (dB) (cycle-accurate model's image)"),
+        "{psnr}"
+    );
     // A sequence's steps have no reference.
     let sequence = text(r#"["class"]"#, true)
         .replace("phantom:metaballs:32", "phantom:metaballs:16")

@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use clap::Args;
+use vizsim::tables::Metric;
 
 #[derive(Args)]
 pub struct MergeArgs {
@@ -201,6 +202,18 @@ fn missing(metrics: &[vizsim::tables::Metric], tabulated: &[bool]) -> Vec<&'stat
         .collect()
 }
 
+/// What to add when metrics no result carries include the float reference's: where they come
+/// from.
+fn missing_hint(missing: &[&str]) -> &'static str {
+    let image = [Metric::ImageError, Metric::Psnr, Metric::PixelsOff].map(Metric::file_name);
+    if missing.iter().any(|m| image.contains(m)) {
+        " (image-error, psnr and pixels-off come from experiments with float_reference = true, \
+         docs/experiments.md)"
+    } else {
+        ""
+    }
+}
+
 /// Writes the tables of `results` (one per model and metric) and prints the fps tables.
 pub fn write_tables(
     results: &ResultsArgs,
@@ -265,6 +278,13 @@ pub fn write_tables(
                     // Skippable sub-cubes are a property of the map, not of a model's timing.
                     let clock = match (metric, model) {
                         (Metric::Skippable, _) => "occupancy map",
+                        // The image, not the timing: the model's frame, whatever its clock.
+                        (Metric::ImageError | Metric::Psnr | Metric::PixelsOff, "step") => {
+                            "step model's image"
+                        }
+                        (Metric::ImageError | Metric::Psnr | Metric::PixelsOff, _) => {
+                            "cycle-accurate model's image"
+                        }
                         (_, "step") => "step model, published cost 12.5 ns per step",
                         _ => "cycle-accurate model at its clock",
                     };
@@ -286,9 +306,10 @@ pub fn write_tables(
             }
             anyhow::ensure!(
                 tabulated.iter().any(|&t| t),
-                "{}: no result{of_model} carries --metric {}",
+                "{}: no result{of_model} carries --metric {}{}",
                 dir.display(),
-                missing(&metrics, &tabulated).join(",")
+                missing(&metrics, &tabulated).join(","),
+                missing_hint(&missing(&metrics, &tabulated))
             );
             let summary = match &results.model {
                 Some(m) => format!("tables-{m}.md"),
@@ -304,8 +325,9 @@ pub fn write_tables(
     let missing = missing(&metrics, &tabulated);
     if asked && !missing.is_empty() {
         vizsim::note!(
-            "note: no result{of_model} carries --metric {}: no table for it",
-            missing.join(",")
+            "note: no result{of_model} carries --metric {}: no table for it{}",
+            missing.join(","),
+            missing_hint(&missing)
         );
     }
     println!("tables -> {}", out.display());
