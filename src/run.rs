@@ -391,7 +391,7 @@ fn structure_bytes_per_voxel(run: &RunDescription) -> u64 {
 /// What preparing `run` on `volume` refuses before it builds anything: the memory budget for
 /// its structures and frame, and with the SDRAM model the voxel word and the rows the volume
 /// needs. `prepare` checks it first; a sweep checks it for every configuration when it expands
-/// (with `check_blocked_fit_on_volume`), so that such a run is refused before a result is
+/// (with `blocked_fit_table` and `check_blocked_fit`), so that such a run is refused before a result is
 /// written rather than stopping the sweep when its turn comes.
 pub fn check_on_volume(run: &RunDescription, volume: &Volume) -> Result<()> {
     crate::budget::check(
@@ -410,18 +410,25 @@ pub fn check_on_volume(run: &RunDescription, volume: &Volume) -> Result<()> {
 }
 
 /// With blocking and the SDRAM model, the blocks the transfer function makes active must fit
-/// the memory's slots. `prepare` checks the renderer's own table; a sweep's expansion builds
-/// the same table here (the blocks depend on the dataset and the transfer function, so a
-/// configuration alone cannot tell).
-pub fn check_blocked_fit_on_volume(run: &RunDescription, volume: &Volume) -> Result<()> {
+/// the memory's slots (`check_blocked_fit`). `prepare` checks the renderer's own table; a
+/// sweep's expansion builds the same table here (the blocks depend on the dataset and the
+/// transfer function, so a configuration alone cannot tell) and keeps it for the
+/// configurations that share it.
+/// None when the run has no such check (not the SDRAM model, or no blocking).
+pub fn blocked_fit_table(run: &RunDescription, volume: &Volume) -> Result<Option<BlockTable>> {
     let config = &run.hardware;
     if !(run.model == Model::Cycle && run.memory == Memory::Sdram && config.blocking.enabled) {
-        return Ok(());
+        return Ok(None);
     }
     let size = crate::blocking::check_block_size(config.blocking.block_size, volume.dims)?;
     let tf = transfer::resolve_for(&run.tf, volume)?;
-    let blocks = block_table(run, volume, &tf, &run.settings(), 1 << size);
-    check_blocked_fit(run, volume.dims, &blocks)
+    Ok(Some(block_table(
+        run,
+        volume,
+        &tf,
+        &run.settings(),
+        1 << size,
+    )))
 }
 
 /// The block table of edge `size` the fixed-point renderer builds for `run` (blocking works
@@ -450,7 +457,11 @@ fn block_table(
 }
 
 /// The blocked volume's active blocks must fit the memory's slots.
-fn check_blocked_fit(run: &RunDescription, dims: [usize; 3], blocks: &BlockTable) -> Result<()> {
+pub fn check_blocked_fit(
+    run: &RunDescription,
+    dims: [usize; 3],
+    blocks: &BlockTable,
+) -> Result<()> {
     let memory = &run.hardware.memory;
     let stats = BlockingStats::new(blocks, memory, dims, 0);
     if stats.fits(memory) {
@@ -1166,13 +1177,41 @@ pub fn check_error_bound(
     check_error_bound_with(run, volume, fixed, None)
 }
 
-/// `run`'s fixed-point frame (the step model's, equal to the cycle model's) against its float
-/// reference, both rendered here: what a sweep's line carries with the experiment's
-/// `float_reference` (a twin that reused another run's timing has no frame of its own).
-pub fn compare_with_float(run: &RunDescription, volume: &Volume) -> Result<Comparison> {
+/// The float reference of `run`: the mathematically intended image (brief, section 5), so
+/// without homogeneous leap values, whose lossy region means the float model follows when it is
+/// asked to render them (every other structure leaves the float image as it is). What the
+/// fixed-point frame is compared with (`Probes::compare_float`, a sweep's `float_reference`,
+/// the bound's check).
+pub fn reference_run(run: &RunDescription) -> RunDescription {
+    let mut reference = RunDescription {
+        model: Model::Float,
+        sample: None,
+        ..run.clone()
+    };
+    if let Leaping::LeapValues { .. } = reference.leaping() {
+        reference.hardware.occupancy.structure = LeapStructure::Map;
+    }
+    reference
+}
+
+/// `run`'s fixed-point frame (the step model's, equal to the cycle model's), rendered with
+/// `fixed` (prepared for `run`, or for its group of frames), against its float reference,
+/// rendered with `reference` (prepared for `reference_run(run)`): what a sweep's line carries
+/// with the experiment's `float_reference` (a twin that reused another run's timing has no frame
+/// of its own).
+pub fn compare_with_reference(
+    run: &RunDescription,
+    fixed: &Prepared,
+    reference: &Prepared,
+) -> Result<Comparison> {
+    let step = RunDescription {
+        model: Model::Step,
+        sample: None,
+        ..run.clone()
+    };
     compare_frames(
-        &frame_of(run, volume, Model::Step)?,
-        &frame_of(run, volume, Model::Float)?,
+        &execute(&step, fixed, Probes::default())?.frame,
+        &execute(&reference_run(run), reference, Probes::default())?.frame,
     )
 }
 
@@ -1180,12 +1219,16 @@ fn compare_frames(fixed: &Frame, float: &Frame) -> Result<Comparison> {
     crate::compare::compare(&fixed.pixels, &float.pixels, fixed.width, fixed.height)
 }
 
-/// `run`'s frame from `model` (exact, whatever `run` samples).
+/// `run`'s frame from `model` (exact, whatever `run` samples; the float model's is the
+/// reference, `reference_run`).
 fn frame_of(run: &RunDescription, volume: &Volume, model: Model) -> Result<Frame> {
-    let run = RunDescription {
-        model,
-        sample: None,
-        ..run.clone()
+    let run = match model {
+        Model::Float => reference_run(run),
+        _ => RunDescription {
+            model,
+            sample: None,
+            ..run.clone()
+        },
     };
     Ok(execute(&run, &prepare(&run, volume)?, Probes::default())?.frame)
 }

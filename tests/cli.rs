@@ -1975,7 +1975,8 @@ fn precision_sweeps_only_widths_the_base_allows() {
 /// `render --model fixed` and `sim` compare their frame with the float reference on every run
 /// (the mission's "is the fixed-point image still right?"), in one line and in `--json`'s
 /// `float_reference`: the same figures `vizsim compare` gives for their PNG against the float
-/// render's. The float render itself has no reference to compare with.
+/// render's, homogeneous leap values' too (the reference is the intended image). The float
+/// render itself has no reference to compare with.
 #[test]
 fn fixed_and_cycle_runs_are_compared_with_the_float_reference() {
     let dir = scratch("float-reference");
@@ -2006,6 +2007,20 @@ fn fixed_and_cycle_runs_are_compared_with_the_float_reference() {
             &["render", "--model", "fixed", "--subcube", "4"][..],
         ),
         ("cycle", &["sim", "--subcube", "4"][..]),
+        // Lossy: the reference is the intended image, not the float model following the
+        // region means (else the loss would not show).
+        (
+            "lossy",
+            &[
+                "render",
+                "--model",
+                "fixed",
+                "--set",
+                "occupancy.structure=leap-values",
+                "--set",
+                "leap_values.regions=homogeneous",
+            ][..],
+        ),
     ] {
         let (png, json) = (path(&format!("{name}.png")), path(&format!("{name}.json")));
         let out = succeeds(&[command, &frame[..], &["-o", &png, "--json", &json]].concat());

@@ -181,6 +181,30 @@ fn a_volume_that_does_not_fit_the_memory_is_refused_before_the_sweep() {
             "8 active blocks",
         ],
     );
+    // Not the field in the error (`memory.rows`, from the base file) but an axis of its
+    // section makes it fail: that axis is named, not `config`.
+    std::fs::write(
+        dir.join("base.toml"),
+        vizsim::config::DEFAULT_TOML.replace("\nrows = 4096", "\nrows = 64"),
+    )
+    .unwrap();
+    refused_before_writing(
+        &dir,
+        "banks.toml",
+        &format!(
+            "config = \"base.toml\"\n{}",
+            cycle(
+                "banks",
+                "\"memory.banks\" = [4, 1]\n\"ray_queue.rays\" = [8]"
+            )
+        ),
+        &[
+            r#"field `axes."memory.banks"`"#,
+            "memory.banks=1",
+            "field `memory.rows`",
+            "needs 128 rows per bank",
+        ],
+    );
     // The same runs on the step model (no SDRAM) are valid.
     let text = experiment("rows-step", r#""none""#, r#""memory.rows" = [4096, 2]"#)
         .replace("phantom:sphere:16", "phantom:sphere:64");

@@ -19,7 +19,6 @@ use serde_json::{json, Value};
 use crate::dynamic::{run_sequence, SequenceOptions, StepView};
 use crate::error::{Error, Result};
 use crate::run::{self, Measurements, Prepared, Probes};
-use crate::volume::Volume;
 use spec::{dataset_label, Expansion, Model, RunSpec};
 use store::ResultStore;
 
@@ -255,10 +254,15 @@ impl TimingReuse {
 
 /// With the experiment's `float_reference`, the line with the run's own image against the float
 /// reference (after the measurements, which a twin may have taken from another run: its image
-/// is its own).
-fn with_float_reference(mut line: Value, run: &RunSpec, volume: &Volume) -> Result<Value> {
-    if run.float_reference {
-        let comparison = run::compare_with_float(&run.run, volume)?;
+/// is its own). `reference` is the group's float reference, prepared once.
+fn with_float_reference(
+    mut line: Value,
+    run: &RunSpec,
+    prepared: &Prepared,
+    reference: Option<&Prepared>,
+) -> Result<Value> {
+    if let (true, Some(reference)) = (run.float_reference, reference) {
+        let comparison = run::compare_with_reference(&run.run, prepared, reference)?;
         line.as_object_mut()
             .expect("object")
             .insert("float_reference".into(), json!(comparison));
@@ -315,7 +319,8 @@ fn stopped(
     Error::Invalid(format!(
         "{error}\nthe sweep stopped there; {} keeps the {kept} result{} written so far: fix \
          the run (or leave it out with [[exclude]], docs/experiments.md) and sweep again into \
-         the same folder to run the rest: {again}",
+         the same folder to run the rest: {again} (with this sweep's --data-dir and \
+         --memory-budget, if it had them)",
         out.join(store::RESULTS).display(),
         if kept == 1 { "" } else { "s" },
     ))
@@ -513,11 +518,19 @@ pub fn sweep(
                 };
                 run_error(expansion, runs[0], &also, e)
             })?;
+            // The float reference of the group, with the experiment's `float_reference`.
+            let reference = match runs[0].float_reference {
+                true => Some(
+                    run::prepare(&run::reference_run(&runs[0].run), volume)
+                        .map_err(|e| run_error(expansion, runs[0], "", e))?,
+                ),
+                false => None,
+            };
             runs.par_iter().try_for_each(|run| -> Result<()> {
                 let t = Instant::now();
                 let line = reuse
                     .run_frame(run, &prepared, name)
-                    .and_then(|line| with_float_reference(line, run, volume))
+                    .and_then(|line| with_float_reference(line, run, &prepared, reference.as_ref()))
                     .map_err(|e| run_error(expansion, run, "", e))?;
                 append(&store, &run.key, &line, t.elapsed().as_secs_f64())?;
                 bar.inc(1);

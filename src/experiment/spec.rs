@@ -1361,9 +1361,23 @@ impl Plan {
                                                     } => format!("field `{f}`: {message}"),
                                                     other => other.to_string(),
                                                 };
+                                                // Not the field itself but axes of its
+                                                // section (`memory.banks` for the rows a
+                                                // volume needs): named as the likely cause.
+                                                let section = field.split('.').next();
+                                                let related: Vec<String> = combo
+                                                    .iter()
+                                                    .filter(|(p, _)| {
+                                                        !field.is_empty()
+                                                            && p.split('.').next() == section
+                                                    })
+                                                    .map(|(p, _)| format!("axes.\"{p}\""))
+                                                    .collect();
                                                 bad(
                                                     &if axis {
                                                         format!("axes.\"{field}\"")
+                                                    } else if !related.is_empty() {
+                                                        related.join(", ")
                                                     } else if experiment.config.is_some() {
                                                         "config".to_string()
                                                     } else {
@@ -1431,7 +1445,7 @@ impl Plan {
 /// header announces, within the memory budget, of the frames' size:
 /// `Scene::check_depth_file`, which reads only its header), the memory budget, the voxel word
 /// and the rows the volume needs in SDRAM (`run::check_on_volume`), and with blocking the
-/// active blocks fitting the memory (`run::check_blocked_fit_on_volume`). The checks that
+/// active blocks fitting the memory (`run::blocked_fit_table`, `run::check_blocked_fit`). The checks that
 /// cost a pass over the volume or a file are kept when they pass, so each costs once per
 /// dataset and value.
 #[derive(Default)]
@@ -1440,9 +1454,9 @@ struct VolumeChecks {
     iso: std::collections::HashSet<(String, u64)>,
     /// Depth files found valid for the frames' size.
     depth_files: std::collections::HashSet<String>,
-    /// Blocked configurations (dataset, transfer function and what decides the block table
-    /// and its fit) found to fit.
-    blocked_fits: std::collections::HashSet<String>,
+    /// Block tables by what decides them (dataset, transfer function, block size, map kind,
+    /// table width, spacing): a memory axis reuses its table, only the fit is checked again.
+    block_tables: std::collections::HashMap<String, Arc<crate::blocking::BlockTable>>,
 }
 
 impl VolumeChecks {
@@ -1479,21 +1493,28 @@ impl VolumeChecks {
             _ => (String::new(), e),
         };
         crate::run::check_on_volume(run, volume).map_err(own_field)?;
-        if config.blocking.enabled {
+        if let Some(size) = config
+            .blocking
+            .enabled
+            .then_some(config.blocking.block_size)
+        {
             let key = format!(
-                "{}\0{}\0{:?}\0{:?}\0{:?}\0{}\0{:?}\0{:?}",
+                "{}\0{}\0{size}\0{:?}\0{}\0{}",
                 run.dataset,
                 run.tf,
-                config.blocking,
-                config.memory,
                 config.occupancy.kind,
                 config.classification.lut_bits,
                 run.sample_spacing.to_bits(),
-                (run.model, run.memory),
             );
-            if !self.blocked_fits.contains(&key) {
-                crate::run::check_blocked_fit_on_volume(run, volume).map_err(own_field)?;
-                self.blocked_fits.insert(key);
+            let table = match self.block_tables.get(&key) {
+                Some(table) => Some(table.clone()),
+                None => crate::run::blocked_fit_table(run, volume)
+                    .map_err(own_field)?
+                    .map(Arc::new),
+            };
+            if let Some(table) = table {
+                crate::run::check_blocked_fit(run, volume.dims, &table).map_err(own_field)?;
+                self.block_tables.insert(key, table);
             }
         }
         Ok(())
