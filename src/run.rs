@@ -8,6 +8,7 @@
 //! not depend on the view, so callers that render many views of one setting (a sweep's frame
 //! group, an orbit) prepare once and execute per view.
 
+use std::borrow::Cow;
 use std::time::Instant;
 
 use serde::Serialize;
@@ -1244,22 +1245,19 @@ fn check_error_bound_with(
     if let Some(reason) = crate::bound::unsupported(&run.hardware) {
         return Err(Error::Invalid(reason));
     }
-    let rendered;
-    let fixed = match fixed {
-        Some(frame) => frame,
-        None => {
-            rendered = frame_of(run, volume, Model::Step)?;
-            &rendered
-        }
-    };
-    let rendered_float;
-    let float = match float {
-        Some(frame) => frame,
-        None => {
-            rendered_float = frame_of(run, volume, Model::Float)?;
-            &rendered_float
-        }
-    };
+    // The frames the caller has, else rendered here.
+    fn given_or<'a>(
+        frame: Option<&'a Frame>,
+        render: impl FnOnce() -> Result<Frame>,
+    ) -> Result<Cow<'a, Frame>> {
+        Ok(match frame {
+            Some(frame) => Cow::Borrowed(frame),
+            None => Cow::Owned(render()?),
+        })
+    }
+    let fixed = given_or(fixed, || frame_of(run, volume, Model::Step))?;
+    let float = given_or(float, || frame_of(run, volume, Model::Float))?;
+    let (fixed, float) = (fixed.as_ref(), float.as_ref());
     let tf = transfer::resolve_for(&run.tf, volume)?;
     let bound = crate::bound::ErrorBound::new(volume, &tf, &settings, &run.hardware)?
         .predict(&run.camera(volume)?);
