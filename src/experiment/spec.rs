@@ -1445,9 +1445,8 @@ impl Plan {
 /// header announces, within the memory budget, of the frames' size:
 /// `Scene::check_depth_file`, which reads only its header), the memory budget, the voxel word
 /// and the rows the volume needs in SDRAM (`run::check_on_volume`), and with blocking the
-/// active blocks fitting the memory (`run::blocked_fit_table`, `run::check_blocked_fit`). The checks that
-/// cost a pass over the volume or a file are kept when they pass, so each costs once per
-/// dataset and value.
+/// active blocks fitting the memory (`run::blocked_fit_table`, `run::check_blocked_fit`). What
+/// costs a pass over the volume or a file is kept, so each costs once per dataset and value.
 #[derive(Default)]
 struct VolumeChecks {
     /// (dataset, iso value's bits) found inside the dataset's densities.
@@ -1493,15 +1492,12 @@ impl VolumeChecks {
             _ => (String::new(), e),
         };
         crate::run::check_on_volume(run, volume).map_err(own_field)?;
-        if let Some(size) = config
-            .blocking
-            .enabled
-            .then_some(config.blocking.block_size)
-        {
+        if config.blocking.enabled {
             let key = format!(
-                "{}\0{}\0{size}\0{:?}\0{}\0{}",
+                "{}\0{}\0{}\0{:?}\0{}\0{}",
                 run.dataset,
                 run.tf,
+                config.blocking.block_size,
                 config.occupancy.kind,
                 config.classification.lut_bits,
                 run.sample_spacing.to_bits(),
