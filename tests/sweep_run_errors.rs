@@ -2,17 +2,14 @@
 //! outside its densities, a block size that does not divide it, a depth file that is missing,
 //! not a file or of the wrong size, a volume that does not fit the SDRAM's rows, with blocking
 //! or without) is refused when the experiment is validated, dry run or not, before the sweep
-//! writes anything, naming the experiment file, the axis and the value.
-//! A run that still fails during the sweep is named (file, key, dataset, tf, mode, model,
-//! frame, axis values), and the results written before it are kept.
+//! writes anything, naming the experiment file, the axis and the value. A run that still fails
+//! during the sweep: tests/sweep_stops.rs.
 
 mod common;
 
 use std::path::{Path, PathBuf};
 
 use vizsim::clip::DepthImage;
-use vizsim::experiment::{self, spec};
-use vizsim::run::Model;
 
 fn scratch(name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!(
@@ -257,75 +254,4 @@ fn a_bad_depth_file_is_refused_before_the_sweep() {
             &all,
         );
     }
-}
-
-#[test]
-fn a_run_that_fails_during_the_sweep_is_named_and_earlier_results_are_kept() {
-    let dir = scratch("during");
-    let depth = dir.join("surface.depth");
-    DepthImage {
-        width: 8,
-        height: 8,
-        depth: vec![4.0; 64],
-    }
-    .write(&depth)
-    .unwrap();
-    // Two groups: without geometry and with the depth file; the file goes away after the
-    // experiment was validated, so the second group fails when it is prepared.
-    let text = experiment(
-        "during",
-        r#""none""#,
-        &format!(
-            "\"geometry.shape\" = [\"none\", \"depth-file\"]\n\"geometry.file\" = [\"{}\"]",
-            depth.display()
-        ),
-    );
-    let expansion = spec::expand(&text, "during.toml", None).expect("valid experiment");
-    assert_eq!(expansion.runs.len(), 16);
-    std::fs::remove_file(&depth).unwrap();
-    let out = dir.join("out");
-    // Swept with `--model step` (every run is one): the hint repeats it.
-    let e = experiment::sweep(&expansion, &out, None, Some(Model::Step), false)
-        .expect_err("the depth file is gone")
-        .to_string();
-    let failed = expansion
-        .runs
-        .iter()
-        .find(|r| e.contains(&format!("run {} (", r.key)))
-        .unwrap_or_else(|| panic!("no run named: {e}"));
-    for needle in [
-        "during.toml: run ",
-        "phantom:sphere:16, tf class, mode none, step model, frame ",
-        "8×8",
-        r#"geometry.shape = "depth-file""#,
-        "field `geometry.file`",
-        "No such file",
-        "the sweep stopped there",
-        &format!(
-            "sweep again into the same folder to run the rest: vizsim sweep during.toml --out {} --model step",
-            out.display()
-        ),
-    ] {
-        assert!(e.contains(needle), "lacks {needle:?}: {e}");
-    }
-    assert_eq!(failed.axes["geometry.shape"], "depth-file");
-    // What the message says is kept is what the folder holds, and the folder resumes.
-    let written = std::fs::read_to_string(out.join("results.jsonl"))
-        .unwrap()
-        .lines()
-        .count();
-    assert!(
-        e.contains(&format!("keeps the {written} result")),
-        "{written} lines written: {e}"
-    );
-    DepthImage {
-        width: 8,
-        height: 8,
-        depth: vec![4.0; 64],
-    }
-    .write(&depth)
-    .unwrap();
-    let summary = experiment::sweep(&expansion, &out, None, None, false).unwrap();
-    assert_eq!(summary.already_done, written);
-    assert_eq!(summary.ran, 16 - written);
 }
