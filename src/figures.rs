@@ -1,7 +1,8 @@
 //! Charts of sweep results (`vizsim plot`), in the published figure style: cycles (or steps)
 //! per frame against the frame number, one line per acceleration mode, one chart per dataset
 //! and classification; skippable sub-cubes and frame rate against the sub-cube size; the frame
-//! rate against every swept hardware field.
+//! rate (and, for lines with `float_reference`, the image PSNR) against every swept hardware
+//! field.
 //!
 //! A chart never averages over configurations: every swept field (a key of a result line's
 //! `axes`) with two or more values among the lines of a chart, other than the chart's x axis,
@@ -534,7 +535,8 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                 )?;
                 written += 1;
             }
-            // 3. Frame rate against each swept hardware field (numbers on a linear axis, or a
+            // 3. Frame rate (and with `float_reference` the PSNR) against each swept hardware
+            //    field (numbers on a linear axis, or a
             //    logarithmic one when they span a decade or more; other values in their order,
             //    evenly spaced). Fields that advance together (a `zip`) make one chart, against
             //    the first of them.
@@ -567,12 +569,26 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                 } else {
                     format!("{axis} ({} advancing with it)", tied.join(", "))
                 } + if log_x { " (log scale)" } else { "" };
-                for facet in facets(&of, &split) {
+                // With `float_reference` in the lines, the image error against the field too:
+                // the other side of a bit-width sweep.
+                let image = of.iter().any(|l| Metric::Psnr.value(l).is_some());
+                let metrics = [
+                    (Metric::Fps, "frame rate", "frames per second"),
+                    (
+                        Metric::Psnr,
+                        "image PSNR (float reference)",
+                        "PSNR against the float reference (dB)",
+                    ),
+                ];
+                for (facet, &(metric, what, y_name)) in facets(&of, &split)
+                    .iter()
+                    .flat_map(|f| metrics.iter().take(1 + image as usize).map(move |m| (f, m)))
+                {
                     if axis_values(&facet.lines, &axis).len() < 2 {
                         continue;
                     }
                     let title = format!(
-                        "{label}: frame rate against {axis}{} ({model_title})",
+                        "{label}: {what} against {axis}{} ({model_title})",
                         facet.title()
                     );
                     let grouped = points(
@@ -590,7 +606,7 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                             ))
                         },
                         x_of,
-                        |l| Metric::Fps.value(l),
+                        |l| metric.value(l),
                     );
                     let (mut series, note) = mean_over_frames(&title, grouped)?;
                     for s in &mut series {
@@ -615,13 +631,14 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                     LineChart {
                         title: &title,
                         x_label: &x_label,
-                        y_label: &with_note("frames per second", &note),
+                        y_label: &with_note(y_name, &note),
                         series,
                         log_y: false,
                     }
                     .write_with(
                         &stem(format!(
-                            "{model}-fps-vs-{}-{}{}",
+                            "{model}-{}-vs-{}-{}{}",
+                            metric.file_name(),
                             file_safe(&axis),
                             file_safe(dataset),
                             facet.file_suffix()

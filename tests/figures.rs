@@ -483,3 +483,42 @@ fn long_names_are_cut_with_a_hash() {
     // The end (the file name, which tells datasets apart) is kept.
     assert!(a.contains("-a_64x64x64_uint8.raw-"), "{a}");
 }
+
+/// Lines with `float_reference` (an experiment's `float_reference = true`) also chart the image
+/// PSNR against each swept field, with the values the lines hold; lines without it do not.
+#[test]
+fn lines_with_the_float_reference_chart_the_psnr_against_each_field() {
+    let dir = scratch("psnr");
+    let mut lines = Vec::new();
+    for bits in [4, 8] {
+        for frame in 0..2 {
+            let axes = json!({"interpolation.weight_bits": bits});
+            let mut l = line("ert+leap8", frame, axes, 700.0, 40.0);
+            // A PSNR no other figure of the chart has, to find in the drawing's axis labels.
+            l["float_reference"] = json!({"psnr_db": if bits == 4 { 31.5 } else { 57.5 }});
+            lines.push(l);
+        }
+    }
+    vizsim::figures::write_all(&lines, &dir).unwrap();
+    let stem = "cycle-psnr-vs-interpolation.weight_bits-phantom-sphere-64";
+    let text = svg(&dir, stem);
+    assert!(
+        text.contains("image PSNR (float reference) against"),
+        "{text}"
+    );
+    assert!(text.contains("PSNR against the float reference (dB)"));
+    assert!(charts(&dir).contains("cycle-fps-vs-interpolation.weight_bits-phantom-sphere-64.svg"));
+    // Without the figure, no PSNR chart.
+    let plain = scratch("no-psnr");
+    for l in &mut lines {
+        l.as_object_mut().unwrap().remove("float_reference");
+    }
+    vizsim::figures::write_all(&lines, &plain).unwrap();
+    assert!(
+        !charts(&plain).iter().any(|c| c.contains("psnr")),
+        "{:?}",
+        charts(&plain)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_dir_all(&plain);
+}
