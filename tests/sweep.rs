@@ -1967,6 +1967,18 @@ size = "24x24"
         psnr.contains("PSNR against the float reference (dB) (cycle-accurate model's image)"),
         "{psnr}"
     );
+    // The dry run's estimate counts the reference's frames.
+    let estimate = |with: bool| {
+        let e =
+            vizsim::experiment::spec::expand(&text(r#"["zero"]"#, with), "e.toml", None).unwrap();
+        vizsim::experiment::estimate_seconds(&e, &e.runs.iter().collect::<Vec<_>>(), 1)
+    };
+    assert!(
+        estimate(true) > estimate(false) * 1.01,
+        "{} {}",
+        estimate(true),
+        estimate(false)
+    );
     // A sequence's steps have no reference.
     let sequence = text(r#"["class"]"#, true)
         .replace("phantom:metaballs:32", "phantom:metaballs:16")

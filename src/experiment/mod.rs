@@ -639,15 +639,21 @@ pub fn run_seconds(
         steps += dims.iter().product::<usize>() as f64 * 0.2;
     }
     let cycle_model = steps * 1.1 / 5e6;
-    match (desc.model, &desc.sample) {
-        (Model::Float | Model::Step, _) => steps / 50e6,
-        (Model::Cycle, None) => cycle_model,
-        (Model::Cycle, Some(_)) => {
-            let sampling = desc.sampling().expect("a sampled run");
-            let rays = desc.size.0 as usize * desc.size.1 as usize;
-            steps / 50e6 + cycle_model * sampling.simulated_share(rays)
+    // With `float_reference`: a float frame (every sample) and the fixed-point frame more.
+    let reference = match run.float_reference {
+        true => (desc.size.0 as f64 * desc.size.1 as f64 * largest * 0.8 + steps) / 50e6,
+        false => 0.0,
+    };
+    reference
+        + match (desc.model, &desc.sample) {
+            (Model::Float | Model::Step, _) => steps / 50e6,
+            (Model::Cycle, None) => cycle_model,
+            (Model::Cycle, Some(_)) => {
+                let sampling = desc.sampling().expect("a sampled run");
+                let rays = desc.size.0 as usize * desc.size.1 as usize;
+                steps / 50e6 + cycle_model * sampling.simulated_share(rays)
+            }
         }
-    }
 }
 
 /// Merges the results of several sweep folders (shards) into `out`: duplicates by key must
