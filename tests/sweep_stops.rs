@@ -44,7 +44,8 @@ size = "8x8"
     let expansion = spec::expand(&text, "during.toml", None).expect("valid experiment");
     assert_eq!(expansion.runs.len(), 16);
     std::fs::remove_file(&depth).unwrap();
-    let out = dir.join("out");
+    // A folder name with a space: the hint quotes it, so that it can be pasted.
+    let out = dir.join("out folder");
     // Swept with `--model step` (every run is one): the hint repeats it.
     let e = experiment::sweep(&expansion, &out, None, Some(Model::Step), false)
         .expect_err("the depth file is gone")
@@ -63,7 +64,7 @@ size = "8x8"
         "No such file",
         "the sweep stopped there",
         &format!(
-            "sweep again into the same folder to run the rest: vizsim sweep during.toml --out {} --model step",
+            "sweep again into the same folder to run the rest: vizsim sweep during.toml --out '{}' --model step",
             out.display()
         ),
     ] {

@@ -545,24 +545,49 @@ pub fn reference_line(report: &vizsim::run::RunReport) -> Option<String> {
         .float_reference
         .as_ref()
         .filter(|_| report.error_bound.is_none())?;
+    Some(reference_text(c))
+}
+
+fn reference_text(c: &vizsim::compare::Comparison) -> String {
     let e = c.max_abs_error;
-    Some(if c.identical {
+    if c.identical {
         "fixed vs float reference: identical images".to_string()
     } else {
         format!(
             "fixed vs float reference: max error (R, G, B, A) {} {} {} {} levels, mean {:.3}, \
-             PSNR {:.1} dB, {} of {} pixels more than 1 level off (--check-bound: each pixel \
+             PSNR {}, {} of {} pixels more than 1 level off (--check-bound: each pixel \
              against the bound its bit widths predict)",
             e[0],
             e[1],
             e[2],
             e[3],
             c.mean_abs_error,
-            c.psnr_db,
+            // The PSNR is over R, G, B: a frame that differs in alpha only has none.
+            if c.psnr_db.is_finite() {
+                format!("{:.1} dB", c.psnr_db)
+            } else {
+                "inf dB (R, G, B identical)".to_string()
+            },
             c.pixels_over_1_lsb,
             c.width as u64 * c.height as u64
         )
-    })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use vizsim::compare::compare;
+
+    #[test]
+    fn a_frame_differing_in_alpha_only_says_why_its_psnr_is_infinite() {
+        let line = super::reference_text(&compare(&[[1, 2, 3, 4]], &[[1, 2, 3, 9]], 1, 1).unwrap());
+        assert!(line.contains("A) 0 0 0 5 levels"), "{line}");
+        assert!(line.contains("PSNR inf dB (R, G, B identical)"), "{line}");
+        let line = super::reference_text(&compare(&[[1, 2, 3, 4]], &[[1, 2, 9, 4]], 1, 1).unwrap());
+        assert!(line.contains("PSNR 37.3 dB"), "{line}");
+        let same = super::reference_text(&compare(&[[1, 2, 3, 4]], &[[1, 2, 3, 4]], 1, 1).unwrap());
+        assert_eq!(same, "fixed vs float reference: identical images");
+    }
 }
 
 /// The lines `render` and `sim` print under their summary for the features a run has on (ray
@@ -728,19 +753,12 @@ fn memory_change_text(words_blocked: u64, words_unblocked: u64) -> String {
 /// arguments, quoted where a shell would need it. Relative paths stay relative, so the same
 /// command run from another folder records the same line.
 pub fn invocation() -> String {
-    let quote = |arg: String| {
-        if !arg.is_empty()
-            && arg
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || "-_./:=,+".contains(c))
-        {
-            arg
-        } else {
-            format!("'{}'", arg.replace('\'', r"'\''"))
-        }
-    };
     std::iter::once("vizsim".to_string())
-        .chain(std::env::args().skip(1).map(quote))
+        .chain(
+            std::env::args()
+                .skip(1)
+                .map(|a| vizsim::output::shell_word(&a)),
+        )
         .collect::<Vec<_>>()
         .join(" ")
 }

@@ -309,7 +309,11 @@ fn stopped(
     (shard, model): (Option<Shard>, Option<Model>),
 ) -> Error {
     let kept = store.lock().map(|s| s.len()).unwrap_or_default();
-    let mut again = format!("vizsim sweep {} --out {}", expansion.source, out.display());
+    let mut again = format!(
+        "vizsim sweep {} --out {}",
+        crate::output::shell_word(&expansion.source),
+        crate::output::shell_word(&out.display().to_string())
+    );
     if let Some(s) = shard {
         again += &format!(" --shard {}/{}", s.index, s.count);
     }
