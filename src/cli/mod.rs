@@ -574,22 +574,6 @@ fn reference_text(c: &vizsim::compare::Comparison) -> String {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use vizsim::compare::compare;
-
-    #[test]
-    fn a_frame_differing_in_alpha_only_says_why_its_psnr_is_infinite() {
-        let line = super::reference_text(&compare(&[[1, 2, 3, 4]], &[[1, 2, 3, 9]], 1, 1).unwrap());
-        assert!(line.contains("A) 0 0 0 5 levels"), "{line}");
-        assert!(line.contains("PSNR inf dB (R, G, B identical)"), "{line}");
-        let line = super::reference_text(&compare(&[[1, 2, 3, 4]], &[[1, 2, 9, 4]], 1, 1).unwrap());
-        assert!(line.contains("PSNR 37.3 dB"), "{line}");
-        let same = super::reference_text(&compare(&[[1, 2, 3, 4]], &[[1, 2, 3, 4]], 1, 1).unwrap());
-        assert_eq!(same, "fixed vs float reference: identical images");
-    }
-}
-
 /// The lines `render` and `sim` print under their summary for the features a run has on (ray
 /// start and end, iso-surface mode, a leaping structure's memory, blocking), in that order.
 pub fn feature_lines(config: &HardwareConfig, m: &vizsim::run::Measurements) -> Vec<String> {
@@ -761,4 +745,20 @@ pub fn invocation() -> String {
         )
         .collect::<Vec<_>>()
         .join(" ")
+}
+
+#[cfg(test)]
+mod tests {
+    use vizsim::compare::compare;
+
+    #[test]
+    fn a_frame_differing_in_alpha_only_says_why_its_psnr_is_infinite() {
+        let line = super::reference_text(&compare(&[[1, 2, 3, 4]], &[[1, 2, 3, 9]], 1, 1).unwrap());
+        assert!(line.contains("A) 0 0 0 5 levels"), "{line}");
+        assert!(line.contains("PSNR inf dB (R, G, B identical)"), "{line}");
+        let line = super::reference_text(&compare(&[[1, 2, 3, 4]], &[[1, 2, 9, 4]], 1, 1).unwrap());
+        assert!(line.contains("PSNR 37.3 dB"), "{line}");
+        let same = super::reference_text(&compare(&[[1, 2, 3, 4]], &[[1, 2, 3, 4]], 1, 1).unwrap());
+        assert_eq!(same, "fixed vs float reference: identical images");
+    }
 }
