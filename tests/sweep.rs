@@ -2001,3 +2001,80 @@ size = "24x24"
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// An experiment's `tf` list takes what `--tf` takes: a transfer-function file and a preset of
+/// another dataset besides `zero` and `class`. A file with the dataset's own class function
+/// gives the `class` runs' figures (a class map built from it), another preset other figures,
+/// and a line equals `sim --json --tf FILE` of the same run.
+#[test]
+fn experiments_sweep_transfer_function_files_and_presets() {
+    let dir = temp_dir("tf-files");
+    let file = dir.join("own.toml");
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/transfer/phantom-metaballs-class.toml"),
+        &file,
+    )
+    .unwrap();
+    let text = format!(
+        r#"
+name = "ci-tf-files"
+datasets = ["phantom:metaballs:32"]
+tf = ["class", "{}", "fuel-class"]
+modes = ["ert+leap4"]
+models = ["step", "cycle"]
+[frames]
+orbit = 72
+select = [7]
+size = "24x24"
+"#,
+        file.display()
+    );
+    let (_, lines) = sweep_in(&dir.join("sweep"), &text, "2");
+    let lines: Vec<serde_json::Value> = lines
+        .iter()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 6);
+    let of = |tf: &str, model: &str| {
+        lines
+            .iter()
+            .find(|l| l["tf"] == tf && l["model"] == model)
+            .unwrap_or_else(|| panic!("no {model} line of tf {tf}"))
+    };
+    let own = file.to_str().unwrap();
+    for model in ["step", "cycle"] {
+        for figure in ["steps", "cycles", "samples", "leaps"] {
+            assert_eq!(
+                of(own, model)[figure],
+                of("class", model)[figure],
+                "{figure}"
+            );
+        }
+        assert_ne!(
+            of("fuel-class", model)["steps"],
+            of("class", model)["steps"]
+        );
+    }
+    let json = dir.join("sim.json");
+    vizsim_ok(&[
+        "sim",
+        "--dataset",
+        "phantom:metaballs:32",
+        "--tf",
+        own,
+        "--subcube",
+        "4",
+        "--view",
+        "orbit:7/72",
+        "--size",
+        "24x24",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    for figure in ["cycles", "steps", "row_hits"] {
+        assert_eq!(report[figure], of(own, "cycle")[figure], "{figure}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

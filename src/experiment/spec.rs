@@ -28,7 +28,9 @@ pub struct ExperimentFile {
     pub config: Option<PathBuf>,
     /// Dataset names (`fuel`, `aneurism`, `phantom:metaballs:64`, ...).
     pub datasets: Vec<String>,
-    /// Classification axis: `zero` ('0' transfer function and map) and/or `class`.
+    /// Classification axis, each as `--tf` takes it: `zero` ('0' transfer function and map),
+    /// `class` (the dataset's own), a preset name or a transfer-function file (a class map
+    /// built from it); checked against every dataset once the datasets are loaded.
     #[serde(default = "default_tf")]
     pub tf: Vec<String>,
     /// Acceleration modes: `none`, or `+`-joined `ert`, `leapN`, `hier`, `distanceN`,
@@ -574,11 +576,6 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
             )),
         })
         .collect::<Result<Vec<_>>>()?;
-    for tf in &experiment.tf {
-        if tf != "zero" && tf != "class" {
-            return Err(bad("tf", format!("`{tf}`: expected `zero` or `class`")));
-        }
-    }
     let sample = experiment
         .sample
         .map(|rate| Sampling::new(rate, "value").map_err(|e| bad("sample", e.to_string())))
@@ -1183,7 +1180,12 @@ impl Plan {
                                 overrides.push(format!("compositing.ert={}", mode.ert));
                                 overrides.push(format!("occupancy.subcube={}", mode.subcube));
                                 overrides.push(format!("occupancy.hierarchy={}", mode.hierarchy));
-                                overrides.push(format!("occupancy.kind=\"{tf}\""));
+                                // `zero` has the '0' map; any other function (`class`, a
+                                // preset, a file) the class map built from its opacities.
+                                overrides.push(format!(
+                                    "occupancy.kind=\"{}\"",
+                                    if tf == "zero" { "zero" } else { "class" }
+                                ));
                                 if base_names_structure
                                     && mode.distance_bits == 0
                                     && mode.leap_values.is_none()
