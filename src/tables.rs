@@ -93,6 +93,9 @@ pub enum Metric {
     QueueEmpty,
     /// Positions in the box that the rays' start and end cut (bricks, clipping), %.
     PositionsCut,
+    /// Clock cycles of a sequence's whole time step: update, map and render (sequence
+    /// experiments; `cycles` is the render's alone).
+    TotalCycles,
     /// Mean absolute difference from the float reference's image, 8-bit levels over all
     /// channels (experiments with `float_reference = true`).
     ImageError,
@@ -121,6 +124,7 @@ impl Metric {
             Metric::Skippable => "skippable sub-cubes (%)",
             Metric::QueueEmpty => "cycles with the ray queue empty per frame",
             Metric::PositionsCut => "positions cut by ray start and end (%)",
+            Metric::TotalCycles => "cycles per time step (update + map + render)",
             Metric::ImageError => "mean error against the float reference (8-bit levels)",
             Metric::Psnr => "PSNR against the float reference (dB)",
             Metric::PixelsOff => "pixels more than 1 level off the float reference",
@@ -143,6 +147,7 @@ impl Metric {
             Metric::Skippable => "skippable",
             Metric::QueueEmpty => "queue-empty",
             Metric::PositionsCut => "positions-cut",
+            Metric::TotalCycles => "total-cycles",
             Metric::ImageError => "image-error",
             Metric::Psnr => "psnr",
             Metric::PixelsOff => "pixels-off",
@@ -173,6 +178,7 @@ impl Metric {
                 &["ray_range", "positions_cut"],
                 &["ray_range", "positions_in_box"],
             ],
+            Metric::TotalCycles => &[&["total_cycles"]],
             Metric::ImageError => &[&["float_reference", "mean_abs_error"]],
             Metric::Psnr => &[&["float_reference", "psnr_db"]],
             Metric::PixelsOff => &[&["float_reference", "pixels_over_1_lsb"]],
@@ -367,6 +373,8 @@ pub struct Table {
     /// Fields that vary among the lines with one value per cell (zipped with the column or a
     /// row): not averaged over, named under the table.
     pub tied: Vec<String>,
+    /// The lines are a sequence's time steps (a note says what their figures are).
+    pub sequence: bool,
     /// The command that made the table (a line under it), when known.
     pub made_by: Option<String>,
 }
@@ -572,10 +580,15 @@ pub fn build(
         .into_iter()
         .collect();
     let frames_per_cell: BTreeSet<u32> = cells.values().map(|&(_, n, _, _)| n).collect();
+    // A sequence's line is one time step of one view: its cells are means over time steps.
+    let sequence = lines.iter().any(|l| l.get("time_step").is_some());
+    let frame = if sequence { "time step" } else { "frame" };
     let held = match (frames_per_cell.first(), frames_per_cell.last()) {
-        (Some(&low), Some(&high)) if high > 1 && low == high => format!("mean over {high} frames"),
-        (Some(&low), Some(&high)) if high > 1 => format!("mean over {low}–{high} frames"),
-        _ => "one frame per cell".to_string(),
+        (Some(&low), Some(&high)) if high > 1 && low == high => {
+            format!("mean over {high} {frame}s")
+        }
+        (Some(&low), Some(&high)) if high > 1 => format!("mean over {low}–{high} {frame}s"),
+        _ => format!("one {frame} per cell"),
     };
     let mut raised_sram = BTreeSet::new();
     let mut sampled = BTreeSet::new();
@@ -643,6 +656,7 @@ pub fn build(
         fewer_frames,
         stand_ins,
         tied,
+        sequence,
         made_by: None,
     })
 }
@@ -786,6 +800,13 @@ impl Table {
                     .join(", "),
                 if self.tied.len() == 1 { "varies" } else { "vary" }
             );
+        }
+        if self.sequence {
+            s += "\nSequence steps (docs/experiments.md, \"Sequences: a time axis\"): a cell is the mean of its time \
+                  steps' figures, step 0 (the download) included. A step's `fps` is the clock over \
+                  the whole step's cycles (update + map + render, `--metric total-cycles`); its \
+                  `cycles` and the other counts are the render's. The sequence's frame rate is the \
+                  clock over the mean `total-cycles` (`vizsim sequence`).\n";
         }
         if let Some(command) = &self.made_by {
             s += &format!("\nMade by `{command}`.\n");

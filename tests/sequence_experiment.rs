@@ -137,6 +137,7 @@ fn a_sequence_sweep_equals_vizsim_sequence_and_resumes_without_duplicates() {
         );
         assert_eq!(line["cycles"], line["render_cycles"]);
     }
+    let mut rates = BTreeMap::new();
     for source in ["phantom:metaballs:32", "phantom:tsdf:32"] {
         for map in ["during-update", "scan", "none"] {
             let o = vizsim(&[
@@ -169,7 +170,46 @@ fn a_sequence_sweep_equals_vizsim_sequence_and_resumes_without_duplicates() {
                     assert_eq!(line[field], step[field], "{source} {map} step {k} {field}");
                 }
             }
+            rates.insert((source, map), report["fps"].as_f64().unwrap());
         }
+    }
+    // Tabulated, a cell is a mean over time steps and says so; the clock over the mean
+    // `total-cycles` is the sequence's frame rate as `vizsim sequence` gives it.
+    let tables = dir.join("tables");
+    let o = vizsim(&[
+        "table",
+        out.to_str().unwrap(),
+        "--rows",
+        "dataset,map",
+        "--columns",
+        "mode",
+        "--metric",
+        "total-cycles,fps",
+        "--out",
+        tables.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let md = std::fs::read_to_string(tables.join("cycle-fps.md")).unwrap();
+    assert!(md.contains("mean over 3 time steps"), "{md}");
+    assert!(md.contains("The sequence's frame rate is the clock over the mean `total-cycles`"));
+    let csv = std::fs::read_to_string(tables.join("cycle-total-cycles.csv")).unwrap();
+    for ((source, map), fps) in rates {
+        let row = csv
+            .lines()
+            .find(|l| l.starts_with(&format!("{source},{map},")))
+            .unwrap_or_else(|| panic!("no row {source} {map}: {csv}"));
+        // One mode per row (the `none` map renders without its map: mode ERT).
+        let mean: f64 = row
+            .split(',')
+            .skip(2)
+            .find(|c| !c.is_empty())
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!(
+            (1e8 / mean - fps).abs() < 1e-6 * fps,
+            "{source} {map}: {mean} {fps}"
+        );
     }
 }
 

@@ -209,6 +209,8 @@ fn missing_hint(missing: &[&str]) -> &'static str {
     if missing.iter().any(|m| image.contains(m)) {
         " (image-error, psnr and pixels-off come from experiments with float_reference = true, \
          docs/experiments.md)"
+    } else if missing.contains(&Metric::TotalCycles.file_name()) {
+        " (total-cycles comes from experiments with [sequence], docs/experiments.md)"
     } else {
         ""
     }
