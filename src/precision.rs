@@ -350,6 +350,7 @@ pub fn write_report(report: &PrecisionReport, out_dir: &Path) -> Result<Vec<Path
     for (suffix, chart) in charts {
         chart.write(&file(&format!("-{suffix}")))?;
         written.push(file(&format!("-{suffix}.png")));
+        written.push(file(&format!("-{suffix}.svg")));
     }
     let cost_title = format!(
         "{}: skip widths vs steps ({LEAP_SUBCUBE}³ sub-cubes)",
@@ -375,5 +376,6 @@ pub fn write_report(report: &PrecisionReport, out_dir: &Path) -> Result<Vec<Path
     };
     cost_chart.write(&file("-steps"))?;
     written.push(file("-steps.png"));
+    written.push(file("-steps.svg"));
     Ok(written)
 }

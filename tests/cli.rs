@@ -372,7 +372,7 @@ fn verify_skip_reports_no_violations_when_rounding_down_and_some_when_rounding_t
 #[test]
 fn precision_sweep_writes_tables_and_plots_and_skip_widths_never_change_the_image() {
     let dir = scratch("precision");
-    succeeds(&[
+    let out = succeeds(&[
         "precision",
         "--dataset",
         "phantom:sphere:32",
@@ -381,6 +381,19 @@ fn precision_sweep_writes_tables_and_plots_and_skip_widths_never_change_the_imag
         "--out",
         dir.to_str().unwrap(),
     ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    // Every file is named as written, and there is no other.
+    let mut written: Vec<&str> = stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("wrote "))
+        .collect();
+    written.sort();
+    let mut files: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path().display().to_string())
+        .collect();
+    files.sort();
+    assert_eq!(written, files);
     for suffix in [
         ".csv",
         ".md",
@@ -396,6 +409,16 @@ fn precision_sweep_writes_tables_and_plots_and_skip_widths_never_change_the_imag
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("phantom-sphere-32.json")).unwrap())
             .unwrap();
+    // The summary on screen gives each field's PSNR at its narrowest and widest width, as
+    // the report has them.
+    let first = &report["image"][0];
+    let db = first["comparison"]["psnr_db"].as_f64().unwrap();
+    let line = format!(
+        "  {}: {} bits {db:.1} dB, ",
+        first["field"].as_str().unwrap(),
+        first["bits"]
+    );
+    assert!(stdout.contains(&line), "no {line:?} in {stdout}");
     let cost = report["cost"].as_array().unwrap();
     assert!(!cost.is_empty());
     assert!(cost

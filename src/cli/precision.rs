@@ -95,6 +95,31 @@ fn sweep_and_write(args: &PrecisionArgs, base: &vizsim::run::RunDescription) -> 
     for path in written {
         println!("wrote {}", path.display());
     }
+    // A glance at the image points: each field's PSNR at its narrowest and widest width (the
+    // table has every width, the errors and the bound).
+    println!("PSNR against the float reference (R, G, B), narrowest and widest width:");
+    let mut fields: Vec<&str> = report.image.iter().map(|p| p.field.as_str()).collect();
+    fields.dedup();
+    for field in fields {
+        let points: Vec<_> = report.image.iter().filter(|p| p.field == field).collect();
+        let (Some(narrow), Some(wide)) = (points.first(), points.last()) else {
+            continue;
+        };
+        let psnr = |db: f64| {
+            if db.is_finite() {
+                format!("{db:.1} dB")
+            } else {
+                "identical".to_string()
+            }
+        };
+        println!(
+            "  {field}: {} bits {}, {} bits {}",
+            narrow.bits,
+            psnr(narrow.comparison.psnr_db),
+            wide.bits,
+            psnr(wide.comparison.psnr_db)
+        );
+    }
     println!("{} in {:.1} s", volume.name, start.elapsed().as_secs_f64());
     if let Some(reason) = &report.no_bound {
         println!("{reason}: the report gives the measured error only");
