@@ -798,6 +798,8 @@ fn a_second_sweep_into_a_busy_folder_is_refused() {
     ]);
     assert!(!r.status.success());
     assert!(String::from_utf8_lossy(&r.stderr).contains("another sweep"));
+    // Refused before the plan is printed: nothing on screen reads as a sweep that started.
+    assert_eq!(String::from_utf8_lossy(&r.stdout), "");
     drop(held);
     let r = vizsim(&[
         "sweep",

@@ -94,6 +94,11 @@ pub fn run(args: SweepArgs) -> Result<()> {
     experiment::store::ResultStore::check_results_are_runs(out, &done, |key| {
         still_runs.contains(key)
     })?;
+    if !dry_run {
+        // A folder another sweep writes into, or one that cannot be written, is refused before
+        // the plan is printed (the sweep takes the lock for good when it starts).
+        drop(experiment::store::lock_folder(out)?);
+    }
     let threads = rayon::current_num_threads();
     let per_thread = |seconds: f64| duration_text(seconds / threads.max(1) as f64);
     println!(
