@@ -387,7 +387,8 @@ impl ResultStore {
                 .map_err(|e| Error::io(&path, e))?;
             file.set_len(complete).map_err(|e| Error::io(&path, e))?;
             crate::note!(
-                "{}: dropped a torn last line (interrupted write); its run is done again",
+                "{}: dropped a torn last line (interrupted write); its run is done again \
+                 unless another line holds it",
                 path.display()
             );
         }
