@@ -646,7 +646,10 @@ impl HardwareConfig {
     /// The fields that differ from the default but do nothing in this configuration, because
     /// the feature they belong to is off (`iso.value` without `iso.enabled`), each with the
     /// reason: a setting that is shown as set while nothing reads it misleads.
-    pub fn settings_without_effect(&self) -> Vec<String> {
+    /// `not_leaping`: why the run does not leap whatever the configuration asks (the float
+    /// model; a sequence's `--map none`), None when it leaps as configured; then the leaping
+    /// structure's fields are without effect too (`why_without_effect`).
+    pub fn settings_without_effect(&self, not_leaping: Option<&'static str>) -> Vec<String> {
         let t = &self.sdram;
         self.differences_from_default()
             .into_iter()
@@ -666,15 +669,25 @@ impl HardwareConfig {
                     _ => None,
                 };
                 outlasted
-                    .or_else(|| self.why_without_effect(path).map(str::to_string))
+                    .or_else(|| {
+                        self.why_without_effect(path, not_leaping)
+                            .map(str::to_string)
+                    })
                     .map(|why| format!("{difference} ({why})"))
             })
             .collect()
     }
 
     /// Why the field at `path` (`iso.value`) does nothing in this configuration, if it does
-    /// nothing: the switch of its feature that is off.
-    pub fn why_without_effect(&self, path: &str) -> Option<&'static str> {
+    /// nothing: the switch of its feature that is off; or, in a run that does not leap
+    /// (`not_leaping`, the reason: the float model...), a field of the leaping structures
+    /// (`occupancy.*` but the kind that chooses the bricks' test, `leap_values.*`,
+    /// `volume_word.*`, `skip.policy`).
+    pub fn why_without_effect(
+        &self,
+        path: &str,
+        not_leaping: Option<&'static str>,
+    ) -> Option<&'static str> {
         let structure = self.occupancy.structure;
         let no_map = structure == LeapStructure::Map && self.occupancy.subcube == 0;
         // (field prefix, field that is the switch itself, the feature is off, why)
@@ -736,10 +749,16 @@ impl HardwareConfig {
             // Which steps in empty space sample: without a leaping structure none is empty.
             ("skip.policy", "", no_map, "no leaping structure"),
         ];
-        rules
+        let switch_off = rules
             .iter()
             .find(|(prefix, switch, off, _)| *off && path.starts_with(prefix) && path != *switch)
-            .map(|(_, _, _, why)| *why)
+            .map(|(_, _, _, why)| *why);
+        // Bricks follow `occupancy.kind` in every model, leaping or not.
+        let leaping_field = ["occupancy.", "leap_values.", "volume_word.", "skip.policy"]
+            .iter()
+            .any(|prefix| path.starts_with(prefix))
+            && !(path == "occupancy.kind" && self.bricks.size > 0);
+        switch_off.or(not_leaping.filter(|_| leaping_field))
     }
 
     /// The ERT threshold the models apply: None when ERT is off.

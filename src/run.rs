@@ -247,6 +247,15 @@ impl RunDescription {
         }
     }
 
+    /// Why this run does not leap although its configuration may ask it to (the float
+    /// reference, but with homogeneous leap values), None when it leaps as configured: then
+    /// the leaping structure's fields are without effect
+    /// (`HardwareConfig::settings_without_effect`).
+    pub fn why_not_leaping(&self) -> Option<&'static str> {
+        (self.model == Model::Float && self.leaping() == Leaping::None)
+            .then_some("the float model does not leap")
+    }
+
     /// The camera of this run's view of a volume.
     pub fn camera(&self, volume: &Volume) -> Result<Camera> {
         Camera::for_volume(

@@ -1894,6 +1894,85 @@ fn settings_whose_feature_is_off_are_named_as_without_effect() {
     );
 }
 
+/// A run that does not leap names the leaping structure's fields as without effect (a review
+/// found `render --set occupancy.subcube=8` on the float model, and a distance volume, listed
+/// as set and silently ignored); the kind stays in effect when it chooses the bricks' test.
+#[test]
+fn leaping_fields_are_without_effect_in_a_run_that_does_not_leap() {
+    let dir = scratch("not-leaping");
+    let png = dir.join("x.png");
+    let render = |model: &str, sets: &[&str]| {
+        let mut args = vec![
+            "render",
+            "--dataset",
+            "phantom:sphere:16",
+            "--size",
+            "8x8",
+            "--model",
+            model,
+            "-o",
+            png.to_str().unwrap(),
+        ];
+        for s in sets {
+            args.extend_from_slice(&["--set", s]);
+        }
+        String::from_utf8_lossy(&succeeds(&args).stdout).into_owned()
+    };
+    let float = render(
+        "float",
+        &["occupancy.subcube=8", "occupancy.hierarchy=true"],
+    );
+    for expected in [
+        "note: without effect here:",
+        "occupancy.subcube = 8 (the float model does not leap)",
+        "occupancy.hierarchy = true (the float model does not leap)",
+    ] {
+        assert!(float.contains(expected), "{expected}: {float}");
+    }
+    let distance = render("float", &["occupancy.structure=distance"]);
+    assert!(
+        distance.contains("occupancy.structure = \"distance\" (the float model does not leap)"),
+        "{distance}"
+    );
+    let kind = render("float", &["occupancy.kind=\"zero\""]);
+    assert!(
+        kind.contains("occupancy.kind = \"zero\" (the float model does not leap)"),
+        "{kind}"
+    );
+    // The kind chooses the bricks' test on every model; the fixed-point model leaps.
+    let bricks = render("float", &["occupancy.kind=\"zero\"", "bricks.size=8"]);
+    assert!(!bricks.contains("without effect"), "{bricks}");
+    let fixed = render(
+        "fixed",
+        &["occupancy.subcube=8", "occupancy.hierarchy=true"],
+    );
+    assert!(!fixed.contains("without effect"), "{fixed}");
+    // A sequence with `--map none` renders without the map.
+    let sequence = |map: &str| {
+        let out = succeeds(&[
+            "sequence",
+            "--source",
+            "phantom:metaballs:16",
+            "--steps",
+            "1",
+            "--size",
+            "8x8",
+            "--map",
+            map,
+            "--subcube",
+            "8",
+        ]);
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let none = sequence("none");
+    assert!(
+        none.contains("without effect here: occupancy.subcube = 8 (--map none: no leaping)"),
+        "{none}"
+    );
+    let scan = sequence("scan");
+    assert!(!scan.contains("without effect"), "{scan}");
+}
+
 /// `update` says when the map with its min/max and prefix tables exceeds the configured SRAM
 /// (a probe found the table-based figures given for a chip that cannot hold the table).
 #[test]

@@ -405,8 +405,14 @@ impl HardwareArgs {
     }
 
     /// One line saying what the configuration resolved to: the preset and every field that
-    /// differs from the calibrated default.
-    pub fn resolved_line(&self, config: &HardwareConfig) -> String {
+    /// differs from the calibrated default; under it the fields set but without effect in this
+    /// run. `not_leaping`: why the run does not leap whatever its configuration asks (the
+    /// float model, `--map none`), which leaves the leaping structure's fields without effect.
+    pub fn resolved_line(
+        &self,
+        config: &HardwareConfig,
+        not_leaping: Option<&'static str>,
+    ) -> String {
         let source = match &self.config {
             Some(p) => p.display().to_string(),
             None => format!("{} (embedded, calibrated)", vizsim::config::DEFAULT_NAME),
@@ -420,7 +426,7 @@ impl HardwareArgs {
                 changed.join(", ")
             )
         };
-        let mut idle = config.settings_without_effect();
+        let mut idle = config.settings_without_effect(not_leaping);
         // A --set the configuration does not even write out while its feature is off
         // (`bricks.setup` with no bricks, `geometry.radius` with no shape) is named too.
         for assignment in &self.overrides {
@@ -428,7 +434,7 @@ impl HardwareArgs {
             if idle.iter().any(|i| i.starts_with(&format!("{path} ="))) {
                 continue;
             }
-            if let Some(why) = config.why_without_effect(path) {
+            if let Some(why) = config.why_without_effect(path, not_leaping) {
                 idle.push(format!("--set {} ({why})", assignment.trim()));
             }
         }

@@ -84,7 +84,11 @@ pub fn run(args: PrecisionArgs) -> Result<()> {
 }
 
 fn sweep_and_write(args: &PrecisionArgs, base: &vizsim::run::RunDescription) -> Result<()> {
-    println!("{}", args.hardware.resolved_line(&base.hardware));
+    println!(
+        "{}",
+        args.hardware
+            .resolved_line(&base.hardware, base.why_not_leaping())
+    );
     let volume = args.data.load(&args.dataset)?;
     let start = Instant::now();
     let mut report = vizsim::precision::sweep(base, &volume)?;

@@ -77,7 +77,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
     {
         vizsim::output::check_writable(path)?;
     }
-    println!("{}", args.hardware.resolved_line(&desc.hardware));
+    println!(
+        "{}",
+        args.hardware
+            .resolved_line(&desc.hardware, desc.why_not_leaping())
+    );
     // The outputs appear together or not at all; what the run says is printed after them
     // (a failed print must not leave the outputs' temporaries behind).
     use std::fmt::Write as _;

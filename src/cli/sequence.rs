@@ -69,7 +69,12 @@ pub fn run(args: SequenceArgs) -> Result<()> {
     };
     run.validate()?;
     if !args.json {
-        println!("{}", args.hardware.resolved_line(&run.hardware));
+        // `--map none` renders every frame without the map the configuration may describe.
+        let not_leaping = (args.map == MapMode::None).then_some("--map none: no leaping");
+        println!(
+            "{}",
+            args.hardware.resolved_line(&run.hardware, not_leaping)
+        );
     }
     let options = SequenceOptions {
         steps: args.steps,

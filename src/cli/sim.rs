@@ -107,7 +107,10 @@ pub fn run(args: SimArgs) -> Result<()> {
         vizsim::output::check_writable(path)?;
     }
     let config = &desc.hardware;
-    println!("{}", args.hardware.resolved_line(config));
+    println!(
+        "{}",
+        args.hardware.resolved_line(config, desc.why_not_leaping())
+    );
     // The ideal memory reads no SDRAM or memory field: a changed one would go unnoticed.
     if desc.memory != Memory::Sdram {
         let memory_fields: Vec<String> = config
