@@ -785,8 +785,8 @@ impl BoundCheck {
             ),
         };
         format!(
-            "fixed vs float: max error (R, G, B) {} {} {}, mean {:.3}; predicted bound max {} {} \
-             {}, mean {:.3} levels; {verdict}",
+            "fixed vs float: max error (R, G, B) {} {} {}, mean (R, G, B) {:.3}; predicted bound \
+             max {} {} {}, mean (R, G, B) {:.3} levels; {verdict}",
             self.max_error[0],
             self.max_error[1],
             self.max_error[2],

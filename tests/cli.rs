@@ -521,6 +521,12 @@ fn check_bound_reports_invariant_c_and_refuses_what_it_does_not_cover() {
                 && stdout.contains("every pixel within its bound (1024 pixels)"),
             "{command:?}: {stdout}"
         );
+        // Its means are over R, G, B, and say so (the reference line's are over R, G, B, A).
+        let line = stdout
+            .lines()
+            .find(|l| l.starts_with("invariant (c)"))
+            .unwrap();
+        assert_eq!(line.matches(", mean (R, G, B) ").count(), 2, "{line}");
         let report: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
         assert_eq!(report["error_bound"]["violations"], 0, "{command:?}");
@@ -2128,11 +2134,14 @@ fn fixed_and_cycle_runs_are_compared_with_the_float_reference() {
         let out = succeeds(&[command, &frame[..], &["-o", &png, "--json", &json]].concat());
         let stdout = String::from_utf8_lossy(&out.stdout);
         assert!(
-            stdout.contains("fixed vs float reference: max error (R, G, B, A)"),
+            stdout.contains("fixed vs float reference: max error (R, G, B, A)")
+                && stdout.contains(" levels, mean (R, G, B, A) "),
             "{name}: {stdout}"
         );
         let compared = path(&format!("{name}-compare.json"));
-        succeeds(&["compare", &png, &path("float.png"), "--json", &compared]);
+        let out = succeeds(&["compare", &png, &path("float.png"), "--json", &compared]);
+        let said = String::from_utf8_lossy(&out.stdout);
+        assert!(said.contains(", mean (R, G, B, A) "), "{name}: {said}");
         let report: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
         let expected: serde_json::Value =

@@ -560,7 +560,7 @@ fn reference_text(c: &vizsim::compare::Comparison) -> String {
         "fixed vs float reference: identical images".to_string()
     } else {
         format!(
-            "fixed vs float reference: max error (R, G, B, A) {} {} {} {} levels, mean {:.3}, \
+            "fixed vs float reference: max error (R, G, B, A) {} {} {} {} levels, mean (R, G, B, A) {:.3}, \
              PSNR {}, {} of {} pixels more than 1 level off (--check-bound: each pixel \
              against the bound its bit widths predict)",
             e[0],
