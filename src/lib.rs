@@ -26,6 +26,7 @@ pub mod run;
 pub mod shading;
 pub mod skip;
 pub mod tables;
+pub mod text;
 pub mod transfer;
 pub mod volume;
 // 2-way blocking (issue 16).

@@ -320,6 +320,65 @@ fn raw_file_with_wrong_size_names_the_file() {
     );
 }
 
+/// A share that is not exactly 0 or 100 % never prints as either (a review found the tooth,
+/// 99.999 % occupied, printed as "occupied 100.00 %").
+#[test]
+fn info_prints_no_share_as_0_or_100_that_is_not() {
+    let dir = scratch("shares");
+    let raw = dir.join("blob_64x64x64_uint8.raw");
+    // One empty voxel, one at the top of the range, every other one 1.
+    let mut voxels = vec![1u8; 64 * 64 * 64];
+    voxels[0] = 0;
+    voxels[1] = 255;
+    std::fs::write(&raw, voxels).unwrap();
+    let out = succeeds(&["info", raw.to_str().unwrap()]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for expected in [
+        "occupied  > 99.99 % of voxels > 0",
+        "      0..15    > 99.999 % ",
+        "    240..255   < 0.001 % #",
+        "     16..31      0.000 % \n",
+    ] {
+        assert!(stdout.contains(expected), "{expected:?}: {stdout}");
+    }
+}
+
+/// A time too short for milliseconds is given in microseconds, and a count of one takes the
+/// singular (a review found "map 335 (0.00 ms)" and "1 bits of map SRAM").
+#[test]
+fn short_times_and_single_counts_read_naturally() {
+    let out = succeeds(&[
+        "sequence",
+        "--source",
+        "phantom:metaballs:16",
+        "--steps",
+        "2",
+        "--subcube",
+        "8",
+        "--size",
+        "8x8",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains(" + map 8 (0.08 µs) + ") && !stdout.contains("0.00 ms"),
+        "{stdout}"
+    );
+    let out = succeeds(&[
+        "sim",
+        "--dataset",
+        "phantom:sphere:16",
+        "--subcube",
+        "16",
+        "--size",
+        "8x8",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("structure memory: 1 bit of map SRAM\n"),
+        "{stdout}"
+    );
+}
+
 #[test]
 fn info_reports_the_published_occupancy() {
     let Some(dir) = common::data_dir() else {

@@ -375,7 +375,11 @@ fn quick_experiment(data_dir: Option<&Path>, demo_out: &Path, out: &Path) -> Res
     )?;
     let lines = results.read()?;
     let charts = vizsim::figures::write_all(&lines, &out.join("plots"))?;
-    println!("{charts} charts -> {}", out.join("plots").display());
+    println!(
+        "{} -> {}",
+        vizsim::text::count(charts, "chart", "charts"),
+        out.join("plots").display()
+    );
     Ok(())
 }
 

@@ -4,6 +4,7 @@ use anyhow::Result;
 use clap::Args;
 
 use super::{DataArgs, DatasetName};
+use vizsim::text::percent;
 
 #[derive(Args)]
 pub struct InfoArgs {
@@ -36,16 +37,19 @@ pub fn run(args: InfoArgs) -> Result<()> {
             "values    min {} max {} mean {:.2}",
             info.min, info.max, info.mean
         );
-        println!("occupied  {:.2} % of voxels > 0", info.occupied_percent);
+        println!(
+            "occupied  {} % of voxels > 0",
+            percent(info.occupied_percent, 2)
+        );
         let total = info.voxels.max(1) as f64;
         let bin = (volume.max_value() as usize + 1) / 16;
         for (i, count) in info.histogram16.iter().enumerate() {
             let pct = 100.0 * *count as f64 / total;
             println!(
-                "  {:>5}..{:<5} {:>7.3} % {}",
+                "  {:>5}..{:<5} {:>7} % {}",
                 i * bin,
                 (i + 1) * bin - 1,
-                pct,
+                percent(pct, 3),
                 "#".repeat((pct / 2.0).ceil() as usize)
             );
         }

@@ -23,6 +23,7 @@ use clap::{Args, Parser, Subcommand};
 use vizsim::camera::{parse_image_size, Projection};
 use vizsim::config::HardwareConfig;
 use vizsim::run::{Model, RunDescription};
+use vizsim::text::{count, percent};
 use vizsim::volume::{dataset, Volume};
 
 #[derive(Parser)]
@@ -599,10 +600,13 @@ pub fn feature_lines(config: &HardwareConfig, m: &vizsim::run::Measurements) -> 
 fn ray_range_text(m: &vizsim::run::Measurements) -> Option<String> {
     let r = m.ray_range.as_ref()?;
     let mut text = format!(
-        "ray start/end: {} of {} positions in the box cut ({:.1} %)",
+        "ray start/end: {} of {} positions in the box cut ({} %)",
         r.positions_cut,
         r.positions_in_box,
-        100.0 * r.positions_cut as f64 / r.positions_in_box.max(1) as f64
+        percent(
+            100.0 * r.positions_cut as f64 / r.positions_in_box.max(1) as f64,
+            1
+        )
     );
     if let (Some(cycles), Some(bricks)) = (r.setup_cycles, r.bricks_visited) {
         text += &format!("; traversal setup {cycles} cycles over {bricks} bricks visited");
@@ -636,21 +640,32 @@ fn structure_memory_text(m: &vizsim::run::Measurements) -> Option<String> {
     let s = m.structure_memory.as_ref()?;
     let mut parts = Vec::new();
     if s.map_sram_bits > 0 {
-        parts.push(format!("{} bits of map SRAM", s.map_sram_bits));
+        parts.push(format!(
+            "{} of map SRAM",
+            count(s.map_sram_bits, "bit", "bits")
+        ));
     }
     if s.brick_flag_bits > 0 {
-        parts.push(format!("{} brick flags in ray setup", s.brick_flag_bits));
+        parts.push(format!(
+            "{} in ray setup",
+            count(s.brick_flag_bits, "brick flag", "brick flags")
+        ));
     }
     if s.extra_sdram_rows_per_bank > 0 {
         parts.push(format!(
-            "{} more SDRAM rows per bank (the distance array)",
-            s.extra_sdram_rows_per_bank
+            "{} more SDRAM {} per bank (the distance array)",
+            s.extra_sdram_rows_per_bank,
+            if s.extra_sdram_rows_per_bank == 1 {
+                "row"
+            } else {
+                "rows"
+            }
         ));
     }
     if s.voxel_word_bits > 0 {
         parts.push(format!(
-            "{} bits of every voxel word (leap values; no extra memory)",
-            s.voxel_word_bits
+            "{} of every voxel word (leap values; no extra memory)",
+            count(s.voxel_word_bits, "bit", "bits")
         ));
     }
     Some(format!("structure memory: {}", parts.join("; ")))
@@ -701,14 +716,14 @@ fn blocking_cost_note(config: &HardwareConfig, m: &vizsim::run::Measurements) ->
     };
     Some(format!(
         "note: blocking costs more memory than it saves here: each {bs}³ block takes a slot of \
-         {edge}³ voxels, {used} words per module in {units} row unit(s) of {unit_words} ({fill:.1} % \
+         {edge}³ voxels, {used} words per module in {units} row unit(s) of {unit_words} ({fill} % \
          used), so blocking saves memory only with at most {break_even} of the {blocks} blocks \
          active, and {active} are; {advice} (docs/model.md, \"Blocking\")",
         bs = b.block_size,
         edge = b.block_size + 2,
         used = layout.words(),
         units = layout.units,
-        fill = 100.0 * fill,
+        fill = percent(100.0 * fill, 1),
         blocks = b.blocks,
         active = b.active_blocks,
     ))

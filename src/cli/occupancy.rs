@@ -4,6 +4,7 @@ use anyhow::Result;
 use clap::Args;
 
 use super::{DataArgs, DatasetName, HardwareArgs};
+use vizsim::text::percent;
 
 #[derive(Args)]
 pub struct OccupancyArgs {
@@ -114,14 +115,14 @@ pub fn run(args: OccupancyArgs) -> Result<()> {
     println!("|---:|---:|:---:|---:|---:|---:|---:|");
     for r in &rows {
         println!(
-            "| {}³ | {} | {} | {:.2} % | {:.2} % | {:.2} % | {:.2} % |",
+            "| {}³ | {} | {} | {} % | {} % | {} % | {} % |",
             r.subcube,
             r.bits,
             if r.fits_sram { "yes" } else { "no" },
-            r.skippable_zero_percent,
-            r.skippable_class_percent,
-            r.empty_groups_zero_percent,
-            r.empty_groups_class_percent
+            percent(r.skippable_zero_percent, 2),
+            percent(r.skippable_class_percent, 2),
+            percent(r.empty_groups_zero_percent, 2),
+            percent(r.empty_groups_class_percent, 2)
         );
     }
     println!(

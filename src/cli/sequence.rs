@@ -103,8 +103,9 @@ pub fn run(args: SequenceArgs) -> Result<()> {
                     "no map".to_string()
                 } else {
                     format!(
-                        "{:.1} % empty sub-cubes, {} stale",
-                        s.empty_subcubes_percent, s.stale_subcubes
+                        "{} % empty sub-cubes, {} stale",
+                        vizsim::text::percent(s.empty_subcubes_percent, 1),
+                        s.stale_subcubes
                     )
                 },
                 match s.equals_non_leaping {
@@ -119,7 +120,7 @@ pub fn run(args: SequenceArgs) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
-    let ms = |cycles: f64| cycles / (report.clock_mhz * 1e3);
+    let ms = |cycles: f64| vizsim::text::milliseconds(cycles / (report.clock_mhz * 1e3));
     println!(
         "{} {:?}, map {}{}, {}³ bricks, ordering: {} (update, map, render in turn)",
         report.source,
@@ -140,8 +141,8 @@ pub fn run(args: SequenceArgs) -> Result<()> {
     ) {
         (Some(update), Some(map), Some(render), Some(steady)) => {
             println!(
-                "steps after the first, mean: update {update:.0} ({:.2} ms) + map {map:.0} ({:.2} \
-                 ms) + render {render:.0} ({:.2} ms) cycles",
+                "steps after the first, mean: update {update:.0} ({}) + map {map:.0} ({}) + \
+                 render {render:.0} ({}) cycles",
                 ms(update),
                 ms(map),
                 ms(render),

@@ -196,8 +196,8 @@ pub fn run(args: SimArgs) -> Result<()> {
         let memory_line = match (desc.memory, m.page_hit_rate, m.avg_ns_per_voxel_access) {
             (Memory::Ideal { latency }, ..) => format!("; ideal memory, {latency} cycles latency"),
             (_, Some(hits), Some(ns)) => format!(
-                "; SDRAM {:.1} % row hits, {:.2} ns per voxel access",
-                100.0 * hits,
+                "; SDRAM {} % row hits, {:.2} ns per voxel access",
+                vizsim::text::percent(100.0 * hits, 1),
                 ns
             ),
             _ => "; SDRAM: no voxel read".to_string(),

@@ -91,7 +91,7 @@ pub fn run(args: UpdateArgs) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
-    let ms = |cycles: u64| cycles as f64 / (report.clock_mhz * 1e3);
+    let ms = |cycles: u64| vizsim::text::milliseconds(cycles as f64 / (report.clock_mhz * 1e3));
     let d = &report.download;
     println!(
         "{} {:?}, {} mapping, {}³ sub-cubes, clock {} MHz, host link {:.0} MB/s",
@@ -103,7 +103,7 @@ pub fn run(args: UpdateArgs) -> Result<()> {
         report.host_link_mb_per_s
     );
     println!(
-        "download in volume order: {} voxels, {} host bytes; {} cycles ({:.2} ms; host link bound {} cycles), \
+        "download in volume order: {} voxels, {} host bytes; {} cycles ({}; host link bound {} cycles), \
          {} WRITEs ({:.2} per voxel, {} row misses), write stalls {} cycles; \
          map during the update: +{} cycles, exact",
         d.voxels_written,
@@ -120,7 +120,7 @@ pub fn run(args: UpdateArgs) -> Result<()> {
     let d = &report.download_tiled;
     println!(
         "download in tiles: {} regions, {} voxels sent (with the voxel-pair layouts a tile \
-         repeats the slice above it), {} host bytes; {} cycles ({:.2} ms; host link bound {} \
+         repeats the slice above it), {} host bytes; {} cycles ({}; host link bound {} \
          cycles), {} WRITEs ({:.2} per voxel sent, {} row misses), write stalls {} cycles",
         d.regions,
         d.voxels_written,
@@ -135,10 +135,10 @@ pub fn run(args: UpdateArgs) -> Result<()> {
     );
     let s = &report.scan;
     println!(
-        "scan pass: {} requests, {} cycles = {:.2} ms{}, row hits {:.1} %",
+        "scan pass: {} requests, {} cycles = {}{}, row hits {} %",
         s.requests,
         s.cycles,
-        s.ms,
+        vizsim::text::milliseconds(s.ms),
         // The published figure is for a 256³ volume; the scan reads every voxel, so other
         // sizes do not compare with it.
         if report.dims == [256, 256, 256] {
@@ -146,11 +146,11 @@ pub fn run(args: UpdateArgs) -> Result<()> {
         } else {
             ""
         },
-        100.0 * s.row_hit_rate
+        vizsim::text::percent(100.0 * s.row_hit_rate, 1)
     );
     let t = &report.tf_change;
     println!(
-        "transfer-function change: scan {} cycles ({:.2} ms) or min/max table {} + {} cycles \
+        "transfer-function change: scan {} cycles ({}) or min/max table {} + {} cycles \
          ({:.1} µs); table {} bits SRAM (+ prefix table {} bits), map {} bits",
         t.scan_cycles,
         ms(t.scan_cycles),
@@ -178,7 +178,7 @@ pub fn run(args: UpdateArgs) -> Result<()> {
         for (name, r) in [("widen", &p.widen), ("rescan", &p.rescan)] {
             println!(
                 "partial update to {} ({}³ bricks), {name}: {} regions, {} voxels, {} cycles \
-                 ({:.2} ms) + rescan {} + map {} cycles; map {}",
+                 ({}) + rescan {} + map {} cycles; map {}",
                 p.next,
                 p.brick,
                 r.regions,
