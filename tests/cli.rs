@@ -379,6 +379,29 @@ fn short_times_and_single_counts_read_naturally() {
     );
 }
 
+/// `advise` without its input names both ways to give it (a review found only `--dataset`
+/// named), and `--threads` is described for every command, the sweep's part in sweep's help.
+#[test]
+fn advise_names_both_inputs_and_threads_help_fits_every_command() {
+    let out = vizsim(&["advise"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("--dataset <DATASET>|--validate <RESULTS_DIR>"),
+        "{stderr}"
+    );
+    for command in ["compare", "info", "verify-skip", "render"] {
+        let help = String::from_utf8_lossy(&succeeds(&[command, "--help"]).stdout).into_owned();
+        assert!(
+            help.contains("Worker threads (default: all cores). The results do not")
+                && !help.contains("results.jsonl"),
+            "{command}: {help}"
+        );
+    }
+    let sweep = String::from_utf8_lossy(&succeeds(&["sweep", "--help"]).stdout).into_owned();
+    assert!(sweep.contains("merge sorts them"), "{sweep}");
+}
+
 #[test]
 fn info_reports_the_published_occupancy() {
     let Some(dir) = common::data_dir() else {

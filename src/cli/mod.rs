@@ -33,8 +33,7 @@ use vizsim::volume::{dataset, Volume};
     about = "Cycle-accurate simulator of hardware volume ray casting architectures"
 )]
 pub struct Cli {
-    /// Worker threads (default: all cores). Results are identical for any count (a sweep's
-    /// results.jsonl holds the same lines, in the order the runs finished; merge sorts them).
+    /// Worker threads (default: all cores). The results do not depend on the count.
     #[arg(long, global = true, value_parser = parse_threads)]
     threads: Option<usize>,
     /// Memory budget, e.g. 8G or 512M: requests known to need more (a volume from its header,
@@ -77,7 +76,8 @@ enum Command {
     )]
     Precision(precision::PrecisionArgs),
     /// Run an experiment file (configs/experiments/): every run in parallel, results appended
-    /// to OUT/results.jsonl as they finish; re-running resumes.
+    /// to OUT/results.jsonl as they finish; re-running resumes. Any --threads writes the same
+    /// lines, in the order the runs finished (merge sorts them by key).
     Sweep(sweep::SweepArgs),
     /// Merge sweep folders (shards) into one, results sorted by key.
     Merge(results::MergeArgs),
@@ -90,6 +90,12 @@ enum Command {
     /// Predict the frame rate of every leaping configuration (map sizes, hierarchy, distance
     /// volume, leap values) from the functional model and a cost model, and recommend the
     /// fastest that fits the SRAM; --validate compares the advice with a sweep's results.
+    // One of --dataset and --validate, and a missing one names both (as a group: the
+    // argument's own `required_unless_present` named --dataset alone).
+    #[command(
+        mut_arg("dataset", |arg| arg.required_unless_present(clap::builder::Resettable::Reset)),
+        group(clap::ArgGroup::new("advise_input").args(["dataset", "validate"]).required(true))
+    )]
     Advise(advise::AdviseArgs),
     /// Render orbits and a gallery of the phantoms and the datasets present into reports/demo/.
     Demo(demo::DemoArgs),
