@@ -379,6 +379,102 @@ fn short_times_and_single_counts_read_naturally() {
     );
 }
 
+/// A negative value of a numeric option reaches the option's own check (a review found
+/// `--spacing -1` answered with clap's "unexpected argument '-1' found" while `--spacing 0`
+/// named the allowed range); an unsigned option says it is negative.
+#[test]
+fn negative_numbers_reach_the_options_checks() {
+    let dir = scratch("negative");
+    let png = dir.join("x.png");
+    let render = |extra: &[&'static str]| {
+        let frame = ["render", "--dataset", "phantom:sphere:16", "--size", "8x8"];
+        [&frame[..], extra, &["-o", png.to_str().unwrap()]].concat()
+    };
+    for (args, needles) in [
+        (
+            render(&["--spacing", "-1"]),
+            &["sample spacing -1: allowed 1/64..=16 voxels"][..],
+        ),
+        (
+            render(&["--model", "fixed", "--subcube", "-8"]),
+            &["'--subcube <SUBCUBE>': negative"][..],
+        ),
+        (
+            render(&["--bricks", "-8"]),
+            &["'--bricks <BRICKS>': negative"][..],
+        ),
+        (
+            render(&["--threads", "-1"]),
+            &["`-1`: expected 1..=1024 threads"][..],
+        ),
+        (
+            vec![
+                "sequence",
+                "--source",
+                "phantom:metaballs:16",
+                "--map",
+                "none",
+                "--dt",
+                "-1",
+            ],
+            &["time step dt = -1: must be a finite number above 0"][..],
+        ),
+        (
+            vec![
+                "sequence",
+                "--source",
+                "phantom:metaballs:16",
+                "--steps",
+                "-1",
+            ],
+            &["'--steps <STEPS>': negative"][..],
+        ),
+        (
+            vec![
+                "sim",
+                "--dataset",
+                "phantom:sphere:16",
+                "--memory",
+                "ideal",
+                "--ideal-latency",
+                "-1",
+            ],
+            &["'--ideal-latency <IDEAL_LATENCY>': negative"][..],
+        ),
+        (
+            vec!["verify-skip", "--subcube", "2,-16"],
+            &["'--subcube <SUBCUBE>': negative"][..],
+        ),
+        (
+            vec!["advise", "--dataset", "phantom:sphere:16", "--views", "-1"],
+            &["'--views <VIEWS>': negative"][..],
+        ),
+        (
+            vec!["table", "no-such-folder", "--frame-step", "-1"],
+            &["'--frame-step <FRAME_STEP>': negative"][..],
+        ),
+    ] {
+        assert_fails(&args, needles, &png);
+        let stderr = String::from_utf8_lossy(&vizsim(&args).stderr).into_owned();
+        assert!(
+            !stderr.contains("unexpected argument"),
+            "{args:?}: {stderr}"
+        );
+    }
+    // The parsers set on options defined elsewhere (advise, table) read their types: a valid
+    // value gets as far as the command (a mismatch would panic in the argument parsing).
+    assert_fails(
+        &["advise", "--validate", "no-such-folder", "--max-views", "2"],
+        &["--validate no-such-folder"],
+        &png,
+    );
+    assert_fails(
+        &["plot", "no-such-folder", "--frame-step", "2"],
+        &["no-such-folder"],
+        &png,
+    );
+}
+
 /// `advise` without its input names both ways to give it (a review found only `--dataset`
 /// named), and `--threads` is described for every command, the sweep's part in sweep's help.
 #[test]

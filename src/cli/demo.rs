@@ -23,7 +23,12 @@ pub struct DemoArgs {
     out: PathBuf,
     /// Frames of the orbit (the published animation has 72, 5 degrees each; at most 3600,
     /// a tenth of a degree each).
-    #[arg(long, default_value_t = 72)]
+    #[arg(
+        long,
+        default_value_t = 72,
+        allow_negative_numbers = true,
+        value_parser = super::unsigned::<u32>,
+    )]
     frames: u32,
 }
 

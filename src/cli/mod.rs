@@ -34,12 +34,17 @@ use vizsim::volume::{dataset, Volume};
 )]
 pub struct Cli {
     /// Worker threads (default: all cores). The results do not depend on the count.
-    #[arg(long, global = true, value_parser = parse_threads)]
+    #[arg(long, global = true, allow_negative_numbers = true, value_parser = parse_threads)]
     threads: Option<usize>,
     /// Memory budget, e.g. 8G or 512M: requests known to need more (a volume from its header,
     /// a frame from its size, an experiment from its run count) are refused up front. Default:
     /// env VIZSIM_MEMORY_BUDGET, else the machine's memory.
-    #[arg(long, global = true, value_parser = vizsim::budget::parse)]
+    #[arg(
+        long,
+        global = true,
+        allow_negative_numbers = true,
+        value_parser = vizsim::budget::parse
+    )]
     memory_budget: Option<u64>,
     #[command(subcommand)]
     command: Command,
@@ -83,9 +88,11 @@ enum Command {
     Merge(results::MergeArgs),
     /// Tables of a sweep's results (Markdown and CSV): rows dataset x classification, columns
     /// the acceleration modes, cells averaged over the frames.
+    #[command(mut_arg("frame_step", unsigned_arg::<u64>))]
     Table(results::TableArgs),
     /// Charts of a sweep's results (PNG + SVG): cycles or steps per frame against the frame,
     /// skippable sub-cubes and frame rate against the sub-cube size, swept fields.
+    #[command(mut_arg("frame_step", unsigned_arg::<u64>))]
     Plot(results::PlotArgs),
     /// Predict the frame rate of every leaping configuration (map sizes, hierarchy, distance
     /// volume, leap values) from the functional model and a cost model, and recommend the
@@ -93,6 +100,9 @@ enum Command {
     // One of --dataset and --validate, and a missing one names both (as a group: the
     // argument's own `required_unless_present` named --dataset alone).
     #[command(
+        mut_arg("views", unsigned_arg::<u32>),
+        mut_arg("rays", unsigned_arg::<u64>),
+        mut_arg("max_views", unsigned_arg::<usize>),
         mut_arg("dataset", |arg| arg.required_unless_present(clap::builder::Resettable::Reset)),
         group(clap::ArgGroup::new("advise_input").args(["dataset", "validate"]).required(true))
     )]
@@ -126,9 +136,40 @@ fn not_listed(arg: clap::Arg) -> clap::Arg {
     arg.hide(true)
 }
 
+/// `unsigned` for an option defined in another file (`mut_arg`): `T` must be its type.
+fn unsigned_arg<T>(arg: clap::Arg) -> clap::Arg
+where
+    T: std::str::FromStr + Clone + Send + Sync + 'static,
+    T::Err: std::fmt::Display,
+{
+    arg.allow_negative_numbers(true).value_parser(unsigned::<T>)
+}
+
 /// Most worker threads `--threads` takes: a huge count made the thread pool try to start
 /// billions of threads (it hung).
 const MAX_THREADS: usize = 1024;
+
+/// The value of an unsigned numeric option. Such options also take `allow_negative_numbers`,
+/// so that `--brick -1` reaches here, and is refused as negative, rather than taken for a flag
+/// (clap's "unexpected argument '-1' found"); a value in its type is checked against the
+/// option's range where the option is used. Floating-point options take
+/// `allow_negative_numbers` alone: their range check sees the negative value.
+pub fn unsigned<T>(text: &str) -> std::result::Result<T, String>
+where
+    T: std::str::FromStr,
+    T::Err: std::fmt::Display,
+{
+    text.parse::<T>().map_err(|e| {
+        let negative = text
+            .strip_prefix('-')
+            .is_some_and(|digits| digits.parse::<u128>().is_ok());
+        if negative {
+            "negative: expected a whole number of 0 or more".to_string()
+        } else {
+            e.to_string()
+        }
+    })
+}
 
 fn parse_threads(text: &str) -> std::result::Result<usize, String> {
     match text.trim().parse::<usize>() {
@@ -259,7 +300,7 @@ pub struct FrameArgs {
     #[arg(long, default_value = "256x256")]
     pub size: String,
     /// Sample spacing along the ray, in voxels.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub spacing: f32,
     /// Disable early ray termination (the same as --set compositing.ert=false).
     #[arg(long)]
@@ -328,7 +369,7 @@ pub struct HardwareArgs {
     #[arg(long = "set", value_name = "FIELD=VALUE")]
     pub overrides: Vec<String>,
     /// Space leaping with sub-cubes of this edge (2, 4, 8, 16, 32 or 64); without it, no leaping.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = unsigned::<usize>)]
     pub subcube: Option<usize>,
     /// Two-level occupancy hierarchy (2x2x2 sub-cubes per byte).
     #[arg(long)]
@@ -338,7 +379,7 @@ pub struct HardwareArgs {
     pub occupancy: Option<OccupancyArg>,
     /// Bounding bricks of this edge (4, 8, 16 or 32): each ray starts at its first active brick and ends
     /// after its last (the same as --set bricks.size=N; all three models).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = unsigned::<usize>)]
     pub bricks: Option<usize>,
 }
 

@@ -19,13 +19,23 @@ pub struct SequenceArgs {
     #[arg(long)]
     source: String,
     /// Number of time steps (step 0 downloads the whole volume).
-    #[arg(long, default_value_t = 30)]
+    #[arg(
+        long,
+        default_value_t = 30,
+        allow_negative_numbers = true,
+        value_parser = super::unsigned::<usize>,
+    )]
     steps: usize,
     /// Metaballs: time between steps.
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
     dt: f32,
     /// Edge of the bricks a partial update sends.
-    #[arg(long, default_value_t = 8)]
+    #[arg(
+        long,
+        default_value_t = 8,
+        allow_negative_numbers = true,
+        value_parser = super::unsigned::<usize>,
+    )]
     brick: usize,
     /// How the occupancy map follows the volume: during-update (conservative), rescan (during
     /// the update, partly written sub-cubes read back: exact), scan (a scan pass per step:

@@ -35,7 +35,7 @@ pub struct SimArgs {
     #[arg(long, value_name = "RATE", allow_negative_numbers = true)]
     sample: Option<f64>,
     /// Latency of the ideal memory (--memory ideal), in cycles (1..=1048576; default 6).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::unsigned::<u64>)]
     ideal_latency: Option<u64>,
     #[command(flatten)]
     hardware: HardwareArgs,

@@ -23,7 +23,12 @@ pub struct UpdateArgs {
     #[arg(long)]
     next: Option<String>,
     /// Brick edge of the partial update's regions.
-    #[arg(long, default_value_t = 8)]
+    #[arg(
+        long,
+        default_value_t = 8,
+        allow_negative_numbers = true,
+        value_parser = super::unsigned::<usize>,
+    )]
     brick: usize,
     #[command(flatten)]
     hardware: HardwareArgs,

@@ -6,32 +6,58 @@ use clap::Args;
 #[derive(Args)]
 pub struct VerifySkipArgs {
     /// Fraction bits of the increment V.
-    #[arg(long, default_value_t = 8)]
+    #[arg(
+        long,
+        default_value_t = 8,
+        allow_negative_numbers = true,
+        value_parser = super::unsigned::<u32>,
+    )]
     increment_bits: u32,
     /// Fraction bits of positions (default: = increment bits).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::unsigned::<u32>)]
     position_bits: Option<u32>,
     /// Significant bits of the reciprocal 1/|V|.
-    #[arg(long, default_value_t = 8)]
+    #[arg(
+        long,
+        default_value_t = 8,
+        allow_negative_numbers = true,
+        value_parser = super::unsigned::<u32>,
+    )]
     reciprocal_bits: u32,
     /// Fraction bits kept of the boundary distance (default: = position bits).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::unsigned::<u32>)]
     distance_bits: Option<u32>,
     /// Sub-cube edge in voxels (2, 4, 8, 16, 32 or 64); several allowed, repeated or as a
     /// list: --subcube 2,16.
-    #[arg(long, default_values_t = [16], value_delimiter = ',')]
+    #[arg(
+        long,
+        default_values_t = [16],
+        value_delimiter = ',',
+        allow_negative_numbers = true,
+        value_parser = super::unsigned::<usize>,
+    )]
     subcube: Vec<usize>,
     /// Reciprocal rounding: `down` (shipped, safe) or `nearest` (unsafe, shows the checker
     /// works). Any violation makes the exit status 1.
     #[arg(long, value_enum, default_value = "down")]
     rounding: RoundingArg,
     /// Largest increment enumerated, in voxels (default 1: one sample per voxel or finer).
-    #[arg(long, default_value_t = 1)]
+    #[arg(
+        long,
+        default_value_t = 1,
+        allow_negative_numbers = true,
+        value_parser = super::unsigned::<u64>,
+    )]
     max_increment_voxels: u64,
     /// Largest number of cases (offsets × increments × 2 directions, summed over the sub-cubes)
     /// run without asking: the count doubles with every position or increment bit, and a run
     /// over this bound is refused up front with its count and estimated time.
-    #[arg(long, default_value_t = DEFAULT_MAX_CASES)]
+    #[arg(
+        long,
+        default_value_t = DEFAULT_MAX_CASES,
+        allow_negative_numbers = true,
+        value_parser = super::unsigned::<u64>,
+    )]
     max_cases: u64,
     /// Print JSON.
     #[arg(long)]
