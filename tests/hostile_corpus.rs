@@ -1367,7 +1367,7 @@ fn hostile_experiments_results_images_and_numbers() {
         ),
         (
             vec!["sweep", "e.toml", "--out", "o", "--shard", "1/0"],
-            "shard",
+            "--shard 1/0: expected I/N",
         ),
         (
             vec!["sweep", "e.toml", "--out", "o", "--shard", "x"],

@@ -79,7 +79,11 @@ pub fn plot(args: PlotArgs) -> Result<()> {
              modes or a swept field; nothing written"
         );
     } else {
-        println!("{written} charts -> {}", out.display());
+        println!(
+            "{} -> {}",
+            vizsim::text::count(written, "chart", "charts"),
+            out.display()
+        );
     }
     Ok(())
 }

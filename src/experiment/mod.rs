@@ -31,7 +31,11 @@ pub struct Shard {
 
 impl Shard {
     pub fn parse(text: &str) -> Result<Shard> {
-        let bad = || Error::config("--shard", text, "expected I/N with 0 <= I < N (e.g. 0/4)");
+        let bad = || {
+            Error::Invalid(format!(
+                "--shard {text}: expected I/N with 0 <= I < N (e.g. 0/4)"
+            ))
+        };
         let (i, n) = text.split_once('/').ok_or_else(bad)?;
         let (index, count): (usize, usize) = (
             i.trim().parse().map_err(|_| bad())?,
