@@ -397,11 +397,11 @@ fn negative_numbers_reach_the_options_checks() {
         ),
         (
             render(&["--model", "fixed", "--subcube", "-8"]),
-            &["'--subcube <SUBCUBE>': negative"][..],
+            &["'--subcube <SUBCUBE>': must not be negative"][..],
         ),
         (
             render(&["--bricks", "-8"]),
-            &["'--bricks <BRICKS>': negative"][..],
+            &["'--bricks <BRICKS>': must not be negative"][..],
         ),
         (
             render(&["--threads", "-1"]),
@@ -427,7 +427,7 @@ fn negative_numbers_reach_the_options_checks() {
                 "--steps",
                 "-1",
             ],
-            &["'--steps <STEPS>': negative"][..],
+            &["'--steps <STEPS>': must not be negative"][..],
         ),
         (
             vec![
@@ -439,19 +439,23 @@ fn negative_numbers_reach_the_options_checks() {
                 "--ideal-latency",
                 "-1",
             ],
-            &["'--ideal-latency <IDEAL_LATENCY>': negative"][..],
+            &["'--ideal-latency <IDEAL_LATENCY>': must not be negative"][..],
         ),
         (
             vec!["verify-skip", "--subcube", "2,-16"],
-            &["'--subcube <SUBCUBE>': negative"][..],
+            &["'--subcube <SUBCUBE>': must not be negative"][..],
         ),
         (
             vec!["advise", "--dataset", "phantom:sphere:16", "--views", "-1"],
-            &["'--views <VIEWS>': negative"][..],
+            &["'--views <VIEWS>': must not be negative"][..],
         ),
         (
             vec!["table", "no-such-folder", "--frame-step", "-1"],
-            &["'--frame-step <FRAME_STEP>': negative"][..],
+            &["'--frame-step <FRAME_STEP>': must not be negative"][..],
+        ),
+        (
+            vec!["advise", "--dataset", "phantom:sphere:16", "--rays", "-64"],
+            &["'--rays <RAYS>': must not be negative"][..],
         ),
     ] {
         assert_fails(&args, needles, &png);
@@ -461,8 +465,7 @@ fn negative_numbers_reach_the_options_checks() {
             "{args:?}: {stderr}"
         );
     }
-    // The parsers set on options defined elsewhere (advise, table) read their types: a valid
-    // value gets as far as the command (a mismatch would panic in the argument parsing).
+    // A valid value gets as far as the command.
     assert_fails(
         &["advise", "--validate", "no-such-folder", "--max-views", "2"],
         &["--validate no-such-folder"],

@@ -17,13 +17,12 @@ use super::DataArgs;
     vizsim advise --dataset aneurism --tf class\n  \
     vizsim advise --dataset bonsai --tf zero --structures map,distance --json\n  \
     vizsim advise --validate runs/advise-validation --out reports/advise")]
+// One of --dataset and --validate, and a missing one names both (as a group: an argument's own
+// `required_unless_present` names that argument alone).
+#[command(group(clap::ArgGroup::new("advise_input").args(["dataset", "validate"]).required(true)))]
 pub struct AdviseArgs {
     /// Dataset: a name in the data folder, phantom:KIND[:SIZE], or a file (not with --validate).
-    #[arg(
-        long,
-        required_unless_present = "validate",
-        conflicts_with = "validate"
-    )]
+    #[arg(long, conflicts_with = "validate")]
     dataset: Option<String>,
     #[command(flatten)]
     data: DataArgs,
@@ -37,11 +36,16 @@ pub struct AdviseArgs {
     size: Option<String>,
     /// Views the prediction averages over: this many (1..=72, default 4), evenly spaced on the
     /// 72-frame orbit. Not with a --validate folder (its runs say).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::unsigned::<u32>)]
     views: Option<u32>,
     /// Rays per view the functional model traces (the image is scaled down to at most this
     /// many; the counts are scaled back up). Larger is closer and slower.
-    #[arg(long, default_value_t = 2048)]
+    #[arg(
+        long,
+        default_value_t = 2048,
+        allow_negative_numbers = true,
+        value_parser = super::unsigned::<u64>
+    )]
     rays: u64,
     /// Structures to rank besides ERT, comma-separated: map, distance, leap-values (default:
     /// map,distance). The distance volume and leap values are built for each run (about a
@@ -69,7 +73,12 @@ pub struct AdviseArgs {
     validate: Option<PathBuf>,
     /// With a --validate folder: most frames of a pair the advisor uses (evenly spaced among
     /// them; default 4).
-    #[arg(long, requires = "validate")]
+    #[arg(
+        long,
+        requires = "validate",
+        allow_negative_numbers = true,
+        value_parser = super::unsigned::<usize>
+    )]
     max_views: Option<usize>,
     /// With --validate: write validation.md, validation.csv and validation.json here.
     #[arg(long, requires = "validate")]

@@ -88,24 +88,13 @@ enum Command {
     Merge(results::MergeArgs),
     /// Tables of a sweep's results (Markdown and CSV): rows dataset x classification, columns
     /// the acceleration modes, cells averaged over the frames.
-    #[command(mut_arg("frame_step", unsigned_arg::<u64>))]
     Table(results::TableArgs),
     /// Charts of a sweep's results (PNG + SVG): cycles or steps per frame against the frame,
     /// skippable sub-cubes and frame rate against the sub-cube size, swept fields.
-    #[command(mut_arg("frame_step", unsigned_arg::<u64>))]
     Plot(results::PlotArgs),
     /// Predict the frame rate of every leaping configuration (map sizes, hierarchy, distance
     /// volume, leap values) from the functional model and a cost model, and recommend the
     /// fastest that fits the SRAM; --validate compares the advice with a sweep's results.
-    // One of --dataset and --validate, and a missing one names both (as a group: the
-    // argument's own `required_unless_present` named --dataset alone).
-    #[command(
-        mut_arg("views", unsigned_arg::<u32>),
-        mut_arg("rays", unsigned_arg::<u64>),
-        mut_arg("max_views", unsigned_arg::<usize>),
-        mut_arg("dataset", |arg| arg.required_unless_present(clap::builder::Resettable::Reset)),
-        group(clap::ArgGroup::new("advise_input").args(["dataset", "validate"]).required(true))
-    )]
     Advise(advise::AdviseArgs),
     /// Render orbits and a gallery of the phantoms and the datasets present into reports/demo/.
     Demo(demo::DemoArgs),
@@ -136,15 +125,6 @@ fn not_listed(arg: clap::Arg) -> clap::Arg {
     arg.hide(true)
 }
 
-/// `unsigned` for an option defined in another file (`mut_arg`): `T` must be its type.
-fn unsigned_arg<T>(arg: clap::Arg) -> clap::Arg
-where
-    T: std::str::FromStr + Clone + Send + Sync + 'static,
-    T::Err: std::fmt::Display,
-{
-    arg.allow_negative_numbers(true).value_parser(unsigned::<T>)
-}
-
 /// Most worker threads `--threads` takes: a huge count made the thread pool try to start
 /// billions of threads (it hung).
 const MAX_THREADS: usize = 1024;
@@ -164,7 +144,7 @@ where
             .strip_prefix('-')
             .is_some_and(|digits| digits.parse::<u128>().is_ok());
         if negative {
-            "negative: expected a whole number of 0 or more".to_string()
+            "must not be negative".to_string()
         } else {
             e.to_string()
         }

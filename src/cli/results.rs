@@ -95,7 +95,12 @@ pub struct ResultsArgs {
     /// Sweep folder (holding results.jsonl).
     pub dir: PathBuf,
     /// Use only frames that are multiples of this (e.g. 2: every other frame).
-    #[arg(long, default_value_t = 1)]
+    #[arg(
+        long,
+        default_value_t = 1,
+        allow_negative_numbers = true,
+        value_parser = super::unsigned::<u64>
+    )]
     pub frame_step: u64,
     /// Only this model's results (`step` or `cycle`).
     #[arg(long)]
