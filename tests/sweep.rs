@@ -2080,3 +2080,27 @@ size = "24x24"
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A folder whose name is not UTF-8 (a file name in another encoding) is tabulated; the
+/// provenance line under the table records it lossily (reading the command line as UTF-8
+/// panicked).
+#[test]
+fn a_folder_name_that_is_not_utf8_is_tabulated() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = temp_dir("not-utf8");
+    let (_, out) = swept(&dir, &step_only());
+    let odd = dir.join(std::ffi::OsStr::from_bytes(b"w\xffo"));
+    std::fs::rename(&out, &odd).unwrap();
+    let r = Command::new(BIN)
+        .arg("table")
+        .arg(&odd)
+        .args(["--rows", "dataset,tf,ray_queue.rays"])
+        .arg("--out")
+        .arg(dir.join("tables"))
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let md = std::fs::read_to_string(dir.join("tables/step-steps.md")).unwrap();
+    assert!(md.contains("Made by `vizsim table '"), "{md}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

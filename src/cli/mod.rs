@@ -783,13 +783,14 @@ fn memory_change_text(words_blocked: u64, words_unblocked: u64) -> String {
 
 /// The command line as typed, for the provenance line of generated reports: `vizsim` and the
 /// arguments, quoted where a shell would need it. Relative paths stay relative, so the same
-/// command run from another folder records the same line.
+/// command run from another folder records the same line. An argument that is not UTF-8 (a
+/// file name in another encoding) is recorded lossily rather than panicking.
 pub fn invocation() -> String {
     std::iter::once("vizsim".to_string())
         .chain(
-            std::env::args()
+            std::env::args_os()
                 .skip(1)
-                .map(|a| vizsim::output::shell_word(&a)),
+                .map(|a| vizsim::output::shell_word(&a.to_string_lossy())),
         )
         .collect::<Vec<_>>()
         .join(" ")
