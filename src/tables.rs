@@ -373,8 +373,9 @@ pub struct Table {
     /// Fields that vary among the lines with one value per cell (zipped with the column or a
     /// row): not averaged over, named under the table.
     pub tied: Vec<String>,
-    /// The lines are a sequence's time steps (a note says what their figures are).
-    pub sequence: bool,
+    /// The lines are a sequence's time steps (a note says what their figures are), with the
+    /// most views a cell holds.
+    pub sequence: Option<usize>,
     /// The command that made the table (a line under it), when known.
     pub made_by: Option<String>,
 }
@@ -516,6 +517,7 @@ pub fn build(
     // Lines per cell whether or not they have the metric's figure (a frame of no steps has no
     // cycles per step): a cell with fewer is one whose results are not all there.
     let mut lines_per_cell: BTreeMap<(Key, (i64, String)), u32> = BTreeMap::new();
+    let mut views_per_cell: BTreeMap<(Key, (i64, String)), BTreeSet<String>> = BTreeMap::new();
     for line in &lines {
         let row: Key = row_fields
             .iter()
@@ -556,6 +558,16 @@ pub fn build(
         if line.get("stand_in") == Some(&Value::Bool(true)) {
             stand_ins.extend(field_text(line, "dataset"));
         }
+        // A sequence's views (each with its time steps): a cell may hold several.
+        let view = ["view", "frame"]
+            .iter()
+            .filter_map(|f| field_text(line, f))
+            .collect::<Vec<_>>()
+            .join(" ");
+        views_per_cell
+            .entry((row.clone(), column.clone()))
+            .or_default()
+            .insert(view);
         let cell = cells.entry((row, column)).or_insert((0.0, 0, false, false));
         cell.0 += value;
         cell.1 += 1;
@@ -580,14 +592,26 @@ pub fn build(
         .into_iter()
         .collect();
     let frames_per_cell: BTreeSet<u32> = cells.values().map(|&(_, n, _, _)| n).collect();
-    // A sequence's line is one time step of one view: its cells are means over time steps.
+    // A sequence's line is one time step of one view: its cells are means over time steps,
+    // and over views when a cell holds several (the frame neither a row nor the column).
     let sequence = lines.iter().any(|l| l.get("time_step").is_some());
-    let frame = if sequence { "time step" } else { "frame" };
+    let most_views = views_per_cell
+        .values()
+        .map(BTreeSet::len)
+        .max()
+        .unwrap_or(1);
+    let frame = match (sequence, most_views) {
+        (false, _) => "frame",
+        (true, 1) => "time step",
+        (true, _) => "time step of every view",
+    };
     let held = match (frames_per_cell.first(), frames_per_cell.last()) {
         (Some(&low), Some(&high)) if high > 1 && low == high => {
-            format!("mean over {high} {frame}s")
+            format!("mean over {high} {}", plural(frame))
         }
-        (Some(&low), Some(&high)) if high > 1 => format!("mean over {low}–{high} {frame}s"),
+        (Some(&low), Some(&high)) if high > 1 => {
+            format!("mean over {low}–{high} {}", plural(frame))
+        }
         _ => format!("one {frame} per cell"),
     };
     let mut raised_sram = BTreeSet::new();
@@ -656,9 +680,17 @@ pub fn build(
         fewer_frames,
         stand_ins,
         tied,
-        sequence,
+        sequence: sequence.then_some(most_views),
         made_by: None,
     })
+}
+
+/// "time step" → "time steps", "time step of every view" → "time steps of every view".
+fn plural(noun: &str) -> String {
+    match noun.split_once(" of ") {
+        Some((head, tail)) => format!("{head}s of {tail}"),
+        None => format!("{noun}s"),
+    }
 }
 
 /// How the cells of one column are written, chosen from the column's largest magnitude so that
@@ -801,12 +833,18 @@ impl Table {
                 if self.tied.len() == 1 { "varies" } else { "vary" }
             );
         }
-        if self.sequence {
+        if let Some(views) = self.sequence {
             s += "\nSequence steps (docs/experiments.md, \"Sequences: a time axis\"): a cell is the mean of its time \
                   steps' figures, step 0 (the download) included. A step's `fps` is the clock over \
                   the whole step's cycles (update + map + render, `--metric total-cycles`); its \
                   `cycles` and the other counts are the render's. The sequence's frame rate is the \
-                  clock over the mean `total-cycles` (`vizsim sequence`).\n";
+                  clock over the mean `total-cycles` (`vizsim sequence`)";
+            s += if views > 1 {
+                "; these cells mix several views' sequences: put `frame` in --rows or --columns \
+                 for each one's.\n"
+            } else {
+                ".\n"
+            };
         }
         if let Some(command) = &self.made_by {
             s += &format!("\nMade by `{command}`.\n");

@@ -243,3 +243,61 @@ fn bad_sequence_input_gives_clear_errors() {
     let e = err(&SEQ.replace("steps = 3", "steps = 3\nbrick = 0"));
     assert!(e.contains("sequence.brick"), "{e}");
 }
+
+/// A sequence seen from two views: a table cell that holds both says it mixes their sequences;
+/// with the frame a row, each cell is one view's time steps.
+#[test]
+fn a_sequence_table_says_when_its_cells_mix_views() {
+    let dir = temp_dir("views");
+    let exp = dir.join("seq.toml");
+    std::fs::write(
+        &exp,
+        SEQ.replace(
+            r#"datasets = ["phantom:metaballs:32", "phantom:tsdf:32"]"#,
+            r#"datasets = ["phantom:metaballs:32"]"#,
+        )
+        .replace("orbit = 1", "orbit = 4\nselect = [0, 1]")
+        .replace(r#"map = ["update", "scan", "none"]"#, r#"map = ["update"]"#),
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let o = vizsim(&[
+        "sweep",
+        exp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(lines(&out.join("results.jsonl")).len(), 2 * 3);
+    let table = |rows: &str, name: &str| {
+        let tables = dir.join(name);
+        let o = vizsim(&[
+            "table",
+            out.to_str().unwrap(),
+            "--rows",
+            rows,
+            "--columns",
+            "mode",
+            "--metric",
+            "total-cycles",
+            "--out",
+            tables.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read_to_string(tables.join("cycle-total-cycles.md")).unwrap()
+    };
+    let mixed = table("dataset,map", "mixed");
+    assert!(
+        mixed.contains("mean over 6 time steps of every view"),
+        "{mixed}"
+    );
+    assert!(
+        mixed.contains("these cells mix several views' sequences"),
+        "{mixed}"
+    );
+    let apart = table("dataset,map,frame", "apart");
+    assert!(apart.contains("mean over 3 time steps\n"), "{apart}");
+    assert!(!apart.contains("mix several views"), "{apart}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
