@@ -20,6 +20,18 @@ pub struct Comparison {
     pub identical: bool,
 }
 
+impl Comparison {
+    /// The PSNR as printed, with `decimals` decimals: over R, G, B, so a frame that differs in
+    /// alpha only has none ("inf dB (R, G, B identical)").
+    pub fn psnr_text(&self, decimals: usize) -> String {
+        if self.psnr_db.is_finite() {
+            format!("{:.decimals$} dB", self.psnr_db)
+        } else {
+            "inf dB (R, G, B identical)".to_string()
+        }
+    }
+}
+
 /// Compares two RGBA8 buffers of the same size.
 pub fn compare(a: &[[u8; 4]], b: &[[u8; 4]], width: u32, height: u32) -> Result<Comparison> {
     if a.len() != b.len() || a.len() != (width * height) as usize {

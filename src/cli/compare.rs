@@ -61,13 +61,13 @@ pub fn run(args: CompareArgs) -> Result<()> {
     })?;
     // Printed after the outputs are in place (a failed print must not leave their temporaries).
     println!(
-        "max |error| R {} G {} B {} A {}, mean (R, G, B, A) {:.4}, PSNR (R, G, B) {:.2} dB, {} pixels differ by more than 1 LSB{}",
+        "max |error| R {} G {} B {} A {}, mean (R, G, B, A) {:.4}, PSNR (R, G, B) {}, {} pixels differ by more than 1 LSB{}",
         result.max_abs_error[0],
         result.max_abs_error[1],
         result.max_abs_error[2],
         result.max_abs_error[3],
         result.mean_abs_error,
-        result.psnr_db,
+        result.psnr_text(2),
         result.pixels_over_1_lsb,
         if result.identical { " (identical)" } else { "" }
     );

@@ -596,12 +596,7 @@ fn reference_text(c: &vizsim::compare::Comparison) -> String {
             e[2],
             e[3],
             c.mean_abs_error,
-            // The PSNR is over R, G, B: a frame that differs in alpha only has none.
-            if c.psnr_db.is_finite() {
-                format!("{:.1} dB", c.psnr_db)
-            } else {
-                "inf dB (R, G, B identical)".to_string()
-            },
+            c.psnr_text(1),
             c.pixels_over_1_lsb,
             c.width as u64 * c.height as u64
         )

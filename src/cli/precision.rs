@@ -109,19 +109,12 @@ fn sweep_and_write(args: &PrecisionArgs, base: &vizsim::run::RunDescription) -> 
         let (Some(narrow), Some(wide)) = (points.first(), points.last()) else {
             continue;
         };
-        let psnr = |db: f64| {
-            if db.is_finite() {
-                format!("{db:.1} dB")
-            } else {
-                "identical".to_string()
-            }
-        };
         println!(
             "  {field}: {} bits {}, {} bits {}",
             narrow.bits,
-            psnr(narrow.comparison.psnr_db),
+            narrow.comparison.psnr_text(1),
             wide.bits,
-            psnr(wide.comparison.psnr_db)
+            wide.comparison.psnr_text(1)
         );
     }
     println!("{} in {:.1} s", volume.name, start.elapsed().as_secs_f64());
