@@ -94,11 +94,13 @@ pub fn run(args: SweepArgs) -> Result<()> {
     experiment::store::ResultStore::check_results_are_runs(out, &done, |key| {
         still_runs.contains(key)
     })?;
-    if !dry_run {
-        // A folder another sweep writes into, or one that cannot be written, is refused before
-        // the plan is printed (the sweep takes the lock for good when it starts).
-        drop(experiment::store::lock_folder(out)?);
-    }
+    // A folder another sweep writes into, or one that cannot be written, is refused before the
+    // plan is printed; the lock is held from here to the sweep's end.
+    let lock = if dry_run {
+        None
+    } else {
+        Some(experiment::store::lock_folder(out)?)
+    };
     let threads = rayon::current_num_threads();
     let per_thread = |seconds: f64| duration_text(seconds / threads.max(1) as f64);
     println!(
@@ -137,7 +139,7 @@ pub fn run(args: SweepArgs) -> Result<()> {
             tally.raised
         );
     }
-    let Some(expansion) = expansion else {
+    let (Some(expansion), Some(lock)) = (expansion, lock) else {
         return Ok(());
     };
     let progress = !quiet && std::io::stderr().is_terminal();
@@ -145,7 +147,7 @@ pub fn run(args: SweepArgs) -> Result<()> {
         .map(vizsim::run::Model::parse)
         .transpose()
         .map_err(anyhow::Error::msg)?;
-    let summary = experiment::sweep(&expansion, out, shard, model, progress)?;
+    let summary = experiment::sweep_locked(&expansion, out, lock, shard, model, progress)?;
     println!(
         "ran {} runs in {:.1} s ({} were already done) -> {}",
         summary.ran,

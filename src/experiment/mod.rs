@@ -436,6 +436,20 @@ pub fn sweep(
     model: Option<Model>,
     progress: bool,
 ) -> Result<SweepSummary> {
+    let lock = store::lock_folder(out)?;
+    sweep_locked(expansion, out, lock, shard, model, progress)
+}
+
+/// `sweep` into a folder whose lock the caller took (`store::lock_folder`), e.g. before
+/// printing a plan, so that no other sweep can take the folder in between.
+pub fn sweep_locked(
+    expansion: &Expansion,
+    out: &Path,
+    lock: std::fs::File,
+    shard: Option<Shard>,
+    model: Option<Model>,
+    progress: bool,
+) -> Result<SweepSummary> {
     let start = Instant::now();
     ResultStore::check_same_experiment(out, &expansion.experiment.name)?;
     let mine: Vec<&RunSpec> = expansion
@@ -443,7 +457,7 @@ pub fn sweep(
         .iter()
         .filter(|r| shard.is_none_or(|s| s.contains(r)) && model.is_none_or(|m| r.run.model == m))
         .collect();
-    let store = ResultStore::open(out)?;
+    let store = ResultStore::open_locked(out, lock)?;
     store.write_resolved(expansion, shard, model)?;
     let pending: Vec<&RunSpec> = mine
         .iter()

@@ -376,7 +376,11 @@ pub struct ResultStore {
 impl ResultStore {
     pub fn open(dir: &Path) -> Result<ResultStore> {
         // One sweep per folder at a time: two writers would interleave their lines.
-        let lock = lock_folder(dir)?;
+        Self::open_locked(dir, lock_folder(dir)?)
+    }
+
+    /// `open` with the folder's lock already taken (`lock_folder`).
+    pub fn open_locked(dir: &Path, lock: File) -> Result<ResultStore> {
         let path = dir.join(RESULTS);
         let (lines, complete, torn) = scan(&path)?;
         if torn {
