@@ -474,11 +474,7 @@ pub fn apply_mode(base: &HardwareConfig, mode: &Mode, tf: &str) -> HardwareConfi
     config.compositing.ert = mode.ert;
     config.occupancy.subcube = mode.subcube;
     config.occupancy.hierarchy = mode.hierarchy;
-    config.occupancy.kind = if tf == "zero" {
-        OccupancyKind::Zero
-    } else {
-        OccupancyKind::Class
-    };
+    config.occupancy.kind = OccupancyKind::for_tf(tf);
     if mode.distance_bits > 0 {
         config.occupancy.structure = LeapStructure::Distance;
         config.occupancy.distance_bits = mode.distance_bits;

@@ -25,6 +25,24 @@ pub enum OccupancyKind {
 }
 
 impl OccupancyKind {
+    /// The map an experiment's (or the advisor's) transfer function gets: `zero` the '0' map,
+    /// any other (`class`, a preset, a file) the class map built from its opacities.
+    pub fn for_tf(tf: &str) -> OccupancyKind {
+        if tf == "zero" {
+            OccupancyKind::Zero
+        } else {
+            OccupancyKind::Class
+        }
+    }
+
+    /// As written in a configuration (`occupancy.kind`).
+    pub fn name(self) -> &'static str {
+        match self {
+            OccupancyKind::Zero => "zero",
+            OccupancyKind::Class => "class",
+        }
+    }
+
     pub fn label(self) -> &'static str {
         match self {
             OccupancyKind::Zero => "0",

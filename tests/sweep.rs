@@ -2044,8 +2044,12 @@ size = "24x24"
             .unwrap_or_else(|| panic!("no {model} line of tf {tf}"))
     };
     let own = file.to_str().unwrap();
-    for model in ["step", "cycle"] {
-        for figure in ["steps", "cycles", "samples", "leaps"] {
+    for (model, figures) in [
+        ("step", &["steps", "samples", "leaps"][..]),
+        ("cycle", &["steps", "samples", "leaps", "cycles"][..]),
+    ] {
+        for figure in figures {
+            assert!(!of(own, model)[figure].is_null(), "{model} {figure}");
             assert_eq!(
                 of(own, model)[figure],
                 of("class", model)[figure],

@@ -1180,11 +1180,9 @@ impl Plan {
                                 overrides.push(format!("compositing.ert={}", mode.ert));
                                 overrides.push(format!("occupancy.subcube={}", mode.subcube));
                                 overrides.push(format!("occupancy.hierarchy={}", mode.hierarchy));
-                                // `zero` has the '0' map; any other function (`class`, a
-                                // preset, a file) the class map built from its opacities.
                                 overrides.push(format!(
                                     "occupancy.kind=\"{}\"",
-                                    if tf == "zero" { "zero" } else { "class" }
+                                    crate::occupancy::OccupancyKind::for_tf(tf).name()
                                 ));
                                 if base_names_structure
                                     && mode.distance_bits == 0
