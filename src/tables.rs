@@ -754,7 +754,8 @@ impl Table {
     pub fn markdown(&self) -> String {
         let mut s = format!("### {}\n\n", self.title);
         let header = self.header();
-        s += &format!("| {} |\n", header.join(" | "));
+        let escaped: Vec<String> = header.iter().map(|h| markdown_cell(h)).collect();
+        s += &format!("| {} |\n", escaped.join(" | "));
         s += &format!(
             "|{}|\n",
             header
@@ -806,6 +807,7 @@ impl Table {
                     }
                 })
                 .collect();
+            let labels: Vec<String> = labels.iter().map(|l| markdown_cell(l)).collect();
             s += &format!("| {} | {} |\n", labels.join(" | "), cells.join(" | "));
         }
         if !self.raised_sram.is_empty() {
@@ -885,6 +887,12 @@ impl Table {
         }
         s
     }
+}
+
+/// A label as a Markdown table cell: a `|` in it (a transfer-function file's path, say) would
+/// end the cell.
+fn markdown_cell(text: &str) -> String {
+    text.replace('|', "\\|")
 }
 
 fn csv_field(text: &str) -> String {
@@ -1063,6 +1071,26 @@ mod tests {
             line["cycles_ci95"] = 10.0.into();
         }
         line
+    }
+
+    /// A label holding `|` (a transfer-function file's path) stays in its cell: every row has
+    /// the header's number of cells.
+    #[test]
+    fn a_bar_in_a_label_does_not_split_its_markdown_cell() {
+        let mut lines = [line("ert", 0, 100, false), line("none", 0, 150, false)];
+        for l in &mut lines {
+            l["tf"] = "own | tf.toml".into();
+        }
+        let refs: Vec<&serde_json::Value> = lines.iter().collect();
+        let rows = ["dataset".to_string(), "tf".to_string()];
+        let md = build(&refs, Metric::Cycles, &rows, "mode", "t")
+            .unwrap()
+            .markdown();
+        let table: Vec<&str> = md.lines().filter(|l| l.starts_with('|')).collect();
+        let cells = |l: &str| l.replace("\\|", "").matches('|').count();
+        assert_eq!(table.len(), 3, "{md}");
+        assert!(table.iter().all(|l| cells(l) == cells(table[0])), "{md}");
+        assert!(md.contains("own \\| tf.toml"), "{md}");
     }
 
     /// A field unknown, repeated in --rows, or in both --rows and --columns is refused, naming
