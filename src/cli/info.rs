@@ -46,7 +46,7 @@ pub fn run(args: InfoArgs) -> Result<()> {
         for (i, count) in info.histogram16.iter().enumerate() {
             let pct = 100.0 * *count as f64 / total;
             println!(
-                "  {:>5}..{:<5} {:>7} % {}",
+                "  {:>5}..{:<5} {:>8} % {}",
                 i * bin,
                 (i + 1) * bin - 1,
                 percent(pct, 3),
