@@ -336,8 +336,8 @@ fn info_prints_no_share_as_0_or_100_that_is_not() {
     for expected in [
         "occupied  > 99.99 % of voxels > 0",
         "      0..15    > 99.999 % ",
-        "    240..255   < 0.001 % #",
-        "     16..31      0.000 % \n",
+        "    240..255    < 0.001 % #",
+        "     16..31       0.000 % \n",
     ] {
         assert!(stdout.contains(expected), "{expected:?}: {stdout}");
     }
