@@ -238,8 +238,8 @@ fn bad_sequence_input_gives_clear_errors() {
     );
     let e = err(&SEQ.replace("models = [\"cycle\"]", "models = [\"step\"]"));
     assert!(e.contains("models") && e.contains("cycle model"), "{e}");
-    let e = err(&SEQ.replace("\"ert+leap8\"", "\"ert+leap8+hier\""));
-    assert!(e.contains("modes") && e.contains("ert+leap8+hier"), "{e}");
+    let e = err(&SEQ.replace("\"ert+leap8\"", "\"ert+distance8\""));
+    assert!(e.contains("modes") && e.contains("ert+distance8"), "{e}");
     let e = err(&SEQ.replace("steps = 3", "steps = 3\nbrick = 0"));
     assert!(e.contains("sequence.brick"), "{e}");
 }
@@ -299,5 +299,67 @@ fn a_sequence_table_says_when_its_cells_mix_views() {
     let apart = table("dataset,map,frame", "apart");
     assert!(apart.contains("mean over 3 time steps\n"), "{apart}");
     assert!(!apart.contains("mix several views"), "{apart}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A sequence experiment takes the map's hierarchy (`ert+leap4+hier`), as `vizsim sequence
+/// --hierarchy` does: the same cycles per step, and other cycles than without it.
+#[test]
+fn a_sequence_experiment_with_the_hierarchy_equals_vizsim_sequence() {
+    let dir = temp_dir("hier");
+    let exp = dir.join("seq.toml");
+    std::fs::write(
+        &exp,
+        SEQ.replace(
+            r#"datasets = ["phantom:metaballs:32", "phantom:tsdf:32"]"#,
+            r#"datasets = ["phantom:metaballs:32"]"#,
+        )
+        .replace(
+            r#"modes = ["ert+leap8"]"#,
+            r#"modes = ["ert+leap4", "ert+leap4+hier"]"#,
+        )
+        .replace(r#"map = ["update", "scan", "none"]"#, r#"map = ["update"]"#),
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let o = vizsim(&[
+        "sweep",
+        exp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let all = lines(&out.join("results.jsonl"));
+    assert_eq!(all.len(), 2 * 3);
+    let o = vizsim(&[
+        "sequence",
+        "--source",
+        "phantom:metaballs:32",
+        "--steps",
+        "3",
+        "--subcube",
+        "4",
+        "--hierarchy",
+        "--view",
+        "orbit:0/1",
+        "--size",
+        "32x32",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let mut differs = false;
+    for step in report["steps"].as_array().unwrap() {
+        let of = |mode: &str| {
+            all.iter()
+                .find(|l| l["mode"] == mode && l["time_step"] == step["step"])
+                .unwrap_or_else(|| panic!("no {mode} line of step {}", step["step"]))
+        };
+        assert_eq!(of("ert+leap4+hier")["render_cycles"], step["render_cycles"]);
+        assert_eq!(of("ert+leap4+hier")["total_cycles"], step["total_cycles"]);
+        differs |= of("ert+leap4")["render_cycles"] != step["render_cycles"];
+    }
+    assert!(differs, "the hierarchy changes no step's render cycles");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -138,7 +138,14 @@ pub fn run(args: SequenceArgs) -> Result<()> {
         report.map.name(),
         report
             .subcube
-            .map(|s| format!(", {s}³ sub-cubes"))
+            .map(|s| format!(
+                ", {s}³ sub-cubes{}",
+                if run.hardware.occupancy.hierarchy {
+                    " + hierarchy"
+                } else {
+                    ""
+                }
+            ))
             .unwrap_or_default(),
         report.brick,
         report.ordering

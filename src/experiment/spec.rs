@@ -667,17 +667,21 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
                 ));
             }
             for m in &modes {
+                // The occupancy map, with or without its hierarchy (the map's byte layout,
+                // which `vizsim sequence --hierarchy` models too), is what a sequence follows.
                 let plain = Mode {
                     ert: m.ert,
                     subcube: m.subcube,
+                    hierarchy: m.hierarchy,
                     ..Mode::parse("none").expect("valid")
                 };
                 if *m != plain {
                     return Err(bad(
                         "modes",
                         format!(
-                            "`{}`: a sequence experiment takes `none`, `ert`, `leapN` and \
-                             `ert+leapN` (the map follows the volume as `sequence.map` says)",
+                            "`{}`: a sequence experiment takes `none`, `ert`, `leapN`, \
+                             `ert+leapN` and `ert+leapN+hier` (the map follows the volume as \
+                             `sequence.map` says)",
                             m.name()
                         ),
                     ));
