@@ -636,6 +636,11 @@ fn ray_range_text(m: &vizsim::run::Measurements) -> Option<String> {
     if let (Some(bytes), Some(cycles)) = (r.table_bytes, r.table_load_cycles) {
         text += &format!("; start/end table {bytes} bytes loaded in {cycles} cycles");
     }
+    if r.positions_in_box > 0 && r.positions_cut == r.positions_in_box {
+        // A clip region outside the volume, say: the frame's figures are those of no sample.
+        text += "; every position is cut, so no ray samples anything (check the clip region, \
+                 the geometry, or the bricks' transfer function)";
+    }
     Some(text)
 }
 
