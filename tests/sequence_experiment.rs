@@ -45,6 +45,29 @@ fn lines(path: &Path) -> Vec<Value> {
         .collect()
 }
 
+/// `SEQ` on the metaballs alone with the map built during the update, changed by `edit`, swept
+/// into `dir/out`; returns the folder.
+fn sweep_metaballs(dir: &Path, edit: impl Fn(String) -> String) -> PathBuf {
+    let exp = dir.join("seq.toml");
+    let text = SEQ
+        .replace(
+            r#"datasets = ["phantom:metaballs:32", "phantom:tsdf:32"]"#,
+            r#"datasets = ["phantom:metaballs:32"]"#,
+        )
+        .replace(r#"map = ["update", "scan", "none"]"#, r#"map = ["update"]"#);
+    std::fs::write(&exp, edit(text)).unwrap();
+    let out = dir.join("out");
+    let o = vizsim(&[
+        "sweep",
+        exp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    out
+}
+
 #[test]
 fn a_sequence_experiment_expands_into_one_run_per_time_step() {
     let e = expand(SEQ, "seq", None).unwrap();
@@ -249,26 +272,9 @@ fn bad_sequence_input_gives_clear_errors() {
 #[test]
 fn a_sequence_table_says_when_its_cells_mix_views() {
     let dir = temp_dir("views");
-    let exp = dir.join("seq.toml");
-    std::fs::write(
-        &exp,
-        SEQ.replace(
-            r#"datasets = ["phantom:metaballs:32", "phantom:tsdf:32"]"#,
-            r#"datasets = ["phantom:metaballs:32"]"#,
-        )
-        .replace("orbit = 1", "orbit = 4\nselect = [0, 1]")
-        .replace(r#"map = ["update", "scan", "none"]"#, r#"map = ["update"]"#),
-    )
-    .unwrap();
-    let out = dir.join("out");
-    let o = vizsim(&[
-        "sweep",
-        exp.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = sweep_metaballs(&dir, |t| {
+        t.replace("orbit = 1", "orbit = 4\nselect = [0, 1]")
+    });
     assert_eq!(lines(&out.join("results.jsonl")).len(), 2 * 3);
     let table = |rows: &str, name: &str| {
         let tables = dir.join(name);
@@ -307,29 +313,12 @@ fn a_sequence_table_says_when_its_cells_mix_views() {
 #[test]
 fn a_sequence_experiment_with_the_hierarchy_equals_vizsim_sequence() {
     let dir = temp_dir("hier");
-    let exp = dir.join("seq.toml");
-    std::fs::write(
-        &exp,
-        SEQ.replace(
-            r#"datasets = ["phantom:metaballs:32", "phantom:tsdf:32"]"#,
-            r#"datasets = ["phantom:metaballs:32"]"#,
-        )
-        .replace(
+    let out = sweep_metaballs(&dir, |t| {
+        t.replace(
             r#"modes = ["ert+leap8"]"#,
             r#"modes = ["ert+leap4", "ert+leap4+hier"]"#,
         )
-        .replace(r#"map = ["update", "scan", "none"]"#, r#"map = ["update"]"#),
-    )
-    .unwrap();
-    let out = dir.join("out");
-    let o = vizsim(&[
-        "sweep",
-        exp.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    });
     let all = lines(&out.join("results.jsonl"));
     assert_eq!(all.len(), 2 * 3);
     let o = vizsim(&[
