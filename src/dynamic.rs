@@ -91,12 +91,35 @@ pub struct DynamicReport {
     pub scan: ScanReport,
     pub tf_change: TfChangeReport,
     pub tf_change_table_us: f64,
-    /// The map bits ('0' or class, one per sub-cube) and the min/max table beside them.
+    /// The map bits ('0' or class, one per sub-cube).
     pub map_bits: u64,
+    /// The map with the min/max table and the prefix table beside it
+    /// (`UpdateEngine::table_on_chip_bits`): what the maps built during updates and the
+    /// table-based transfer-function change keep on chip.
+    pub table_on_chip_bits: u64,
     /// What the maps were checked against: both maps equal `OccupancyMap::build` after the
     /// download and after the scan.
     pub maps_exact: bool,
     pub partial: Option<PartialReport>,
+}
+
+/// A note when the map with its min/max and prefix tables (`table_on_chip_bits`) exceeds the
+/// SRAM the configuration names; None when it fits. `needs` says which work keeps the tables,
+/// `instead` what needs only the map.
+pub fn table_sram_note(
+    table_on_chip_bits: u64,
+    sram_bits: u64,
+    needs: &str,
+    instead: &str,
+) -> Option<String> {
+    (table_on_chip_bits > sram_bits).then(|| {
+        format!(
+            "note: the map, the min/max table and the prefix table need {table_on_chip_bits} bits \
+             on chip, more than occupancy.sram_bits ({sram_bits}): {needs} need a chip with that \
+             much SRAM (--set occupancy.sram_bits={} to model one); {instead} needs only the map",
+            table_on_chip_bits.next_power_of_two()
+        )
+    })
 }
 
 /// Who asks the update model: `vizsim update` measures the map alone (its bits, at the
@@ -240,6 +263,7 @@ pub fn measure(
         tf_change_table_us: us(tf_change.prefix_cycles + tf_change.table_pass_cycles),
         tf_change,
         map_bits: engine.table().subcubes() as u64,
+        table_on_chip_bits: engine.table_on_chip_bits(),
         maps_exact: true,
         partial,
     })
@@ -635,6 +659,10 @@ pub struct SequenceReport {
     /// Frames per second of the steps after the first (partial updates): the sequence's rate.
     /// None (null) with a single step: there is no step after the first.
     pub steady_fps: Option<f64>,
+    /// SRAM bits of the map with its min/max table and prefix table, which the modes that
+    /// build the map from the table (during-update, rescan) keep on chip; None (null) with
+    /// `scan` and `none`, which need at most the map.
+    pub table_on_chip_bits: Option<u64>,
     /// Mean cycles per step after the first: update, map, render (None with a single step).
     pub mean_update_cycles: Option<f64>,
     pub mean_map_cycles: Option<f64>,
@@ -706,6 +734,7 @@ pub fn run_sequence(
         PartialMapPolicy::Widen
     };
     let mut engine: Option<UpdateEngine> = None;
+    let mut table_on_chip_bits = None;
     let mut steps = Vec::new();
     let mut subcube = 0;
     let mut dims = [0; 3];
@@ -721,7 +750,10 @@ pub fn run_sequence(
                     .max(2)
             };
             let log2 = check_subcube_size(subcube, volume.dims)?;
-            engine = Some(UpdateEngine::new(hw, volume.dims, volume.bits, log2, 0)?);
+            let created = UpdateEngine::new(hw, volume.dims, volume.bits, log2, 0)?;
+            table_on_chip_bits = matches!(options.map, MapMode::DuringUpdate | MapMode::Rescan)
+                .then(|| created.table_on_chip_bits());
+            engine = Some(created);
         }
         let engine = engine.as_mut().expect("created above");
         let update = engine.update(&step.update, policy)?;
@@ -831,6 +863,7 @@ pub fn run_sequence(
         ordering: "fence",
         fps: fps_of(&steps),
         steady_fps: later.map(fps_of),
+        table_on_chip_bits,
         mean_update_cycles: mean(|s| s.update_cycles),
         mean_map_cycles: mean(|s| s.map_cycles),
         mean_render_cycles: mean(|s| s.render_cycles),

@@ -2184,6 +2184,48 @@ fn update_says_when_its_tables_exceed_the_sram() {
     assert!(!update("4096").contains("note:"));
 }
 
+/// `sequence` says the same when its map mode keeps the tables on chip (during-update,
+/// rescan), with the figure its JSON gives; `--map scan` keeps only the map and says nothing.
+#[test]
+fn sequence_says_when_its_tables_exceed_the_sram() {
+    let sequence = |map: &str, sram: &str, json: bool| {
+        let mut args = vec![
+            "sequence",
+            "--source",
+            "phantom:metaballs:32",
+            "--steps",
+            "1",
+            "--size",
+            "16x16",
+            "--subcube",
+            "8",
+            "--map",
+            map,
+        ];
+        let set = format!("occupancy.sram_bits={sram}");
+        args.extend(["--set", &set]);
+        if json {
+            args.push("--json");
+        }
+        let out = succeeds(&args);
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    for map in ["during-update", "rescan"] {
+        let small = sequence(map, "2048", false);
+        assert!(
+            small.contains("need 3392 bits on chip, more than occupancy.sram_bits (2048)")
+                && small.contains(&format!("--map {map} builds")),
+            "{small}"
+        );
+        assert!(!sequence(map, "4096", false).contains("note:"));
+        let json: serde_json::Value = serde_json::from_str(&sequence(map, "2048", true)).unwrap();
+        assert_eq!(json["table_on_chip_bits"], 3392);
+    }
+    assert!(!sequence("scan", "2048", false).contains("note:"));
+    let json: serde_json::Value = serde_json::from_str(&sequence("scan", "2048", true)).unwrap();
+    assert!(json["table_on_chip_bits"].is_null());
+}
+
 /// `update --next` says when rescanning the changed regions (with their stencil borders) costs
 /// more than one scan pass over the whole volume, so the exact map is cheaper by a full scan;
 /// when it does not, nothing is said.

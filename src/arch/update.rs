@@ -581,6 +581,14 @@ impl UpdateEngine {
         &self.table
     }
 
+    /// SRAM bits the chip keeps beside the map when it builds maps from the min/max table
+    /// (during updates, and for a transfer-function change): the map (one bit per sub-cube),
+    /// the table and the visibility prefix table. A scan pass needs only the map.
+    pub fn table_on_chip_bits(&self) -> u64 {
+        let costs = self.tf_change_costs(0);
+        self.table.subcubes() as u64 + costs.table_bits + costs.prefix_bits
+    }
+
     /// The map of `kind` as the map unit holds it now.
     pub fn map(&self, kind: OccupancyKind, visible: impl Fn(u16, u16) -> bool) -> OccupancyMap {
         self.table.map(kind, visible)

@@ -176,5 +176,15 @@ pub fn run(args: SequenceArgs) -> Result<()> {
             report.fps
         ),
     }
+    if let Some(note) = report.table_on_chip_bits.and_then(|bits| {
+        vizsim::dynamic::table_sram_note(
+            bits,
+            run.hardware.occupancy.sram_bits,
+            &format!("the maps --map {} builds from the table", report.map.name()),
+            "--map scan",
+        )
+    }) {
+        println!("{note}");
+    }
     Ok(())
 }

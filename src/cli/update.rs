@@ -168,16 +168,13 @@ pub fn run(args: UpdateArgs) -> Result<()> {
     );
     // The table-based rebuild (and the maps built during an update) keep the min/max table
     // on chip beside the map: say when the SRAM the configuration names cannot hold them.
-    let on_chip = report.map_bits + t.table_bits + t.prefix_bits;
-    if on_chip > config.occupancy.sram_bits {
-        println!(
-            "note: the map, the min/max table and the prefix table need {on_chip} bits on chip, \
-             more than occupancy.sram_bits ({}): the table-based rebuild and the maps built \
-             during updates need a chip with that much SRAM (--set occupancy.sram_bits={} to \
-             model one); the scan pass needs only the map",
-            config.occupancy.sram_bits,
-            on_chip.next_power_of_two()
-        );
+    if let Some(note) = vizsim::dynamic::table_sram_note(
+        report.table_on_chip_bits,
+        config.occupancy.sram_bits,
+        "the table-based rebuild and the maps built during updates",
+        "the scan pass",
+    ) {
+        println!("{note}");
     }
     if let Some(p) = &report.partial {
         for (name, r) in [("widen", &p.widen), ("rescan", &p.rescan)] {
