@@ -166,6 +166,10 @@ impl RunDescription {
         check_image_size(self.size.0, self.size.1)?;
         check_frame_budget(self.size)?;
         self.settings().validate()?;
+        // Checked again here, not only when the configuration was read: an experiment's mode
+        // sets the leaping structure, bricks and iso mode after that (a sweep crossed blocking
+        // with distance volumes, which `sim` refuses, and reported cycles for it).
+        self.hardware.validate("the run's hardware configuration")?;
         if let Some(sampling) = &self.sample {
             sampling.validate("sample")?;
             if self.model != Model::Cycle {

@@ -775,3 +775,65 @@ fn the_summary_says_how_much_more_memory_blocking_takes_when_it_saves_none() {
         "{stdout}"
     );
 }
+
+/// An experiment's mode sets the leaping structure, the bricks and iso mode after its axes
+/// were validated: crossed with blocking, each combination `sim` refuses is refused by the
+/// sweep too, naming the run (a sweep reported cycles for blocked leap values, which read no
+/// voxel memory for their leap words), and runs once [[exclude]]d.
+#[test]
+fn a_sweep_refuses_the_blocking_combinations_sim_refuses() {
+    let text = |modes: &str, iso: &str, block: usize, exclude: &str| {
+        format!(
+            "name = \"blocking-modes\"\ndatasets = [\"phantom:sphere:32\"]\ntf = [\"class\"]\n\
+             modes = [\"ert+leap8\", {modes}]\nmodels = [\"step\"]\n\
+             [frames]\norbit = 72\nselect = [0]\nsize = \"16x16\"\n\
+             [axes]\n\"blocking.enabled\" = [false, true]\n\"blocking.block_size\" = [{block}]\n\
+             {iso}{exclude}"
+        )
+    };
+    let cases = [
+        (
+            "\"ert+distance8\"",
+            "",
+            8,
+            "occupancy.structure = \"map\" only",
+        ),
+        (
+            "\"ert+leapvalues\"",
+            "",
+            8,
+            "occupancy.structure = \"map\" only",
+        ),
+        (
+            "\"ert+iso2\"",
+            "\"iso.value\" = [100.0]\n",
+            8,
+            "not modelled in iso mode",
+        ),
+        (
+            "\"ert+bricks16\"",
+            "",
+            8,
+            "8 is smaller than bricks.size (16)",
+        ),
+    ];
+    for (mode, iso, block, expected) in cases {
+        let err = vizsim::experiment::spec::expand(&text(mode, iso, block, ""), "test", None)
+            .err()
+            .unwrap_or_else(|| panic!("{mode} with blocking was accepted"))
+            .to_string();
+        assert!(
+            err.contains(expected)
+                && err.contains(&format!("mode {}", mode.trim_matches('"')))
+                && err.contains("blocking.enabled=true")
+                && err.contains("[[exclude]]"),
+            "{mode}: {err}"
+        );
+        let excluded = format!("[[exclude]]\nmode = {mode}\n\"blocking.enabled\" = true\n");
+        let expansion =
+            vizsim::experiment::spec::expand(&text(mode, iso, block, &excluded), "test", None)
+                .unwrap_or_else(|e| panic!("{mode} excluded: {e}"));
+        // ert+leap8 with and without blocking, the other mode without.
+        assert_eq!(expansion.runs.len(), 3, "{mode}");
+    }
+}

@@ -1346,8 +1346,16 @@ impl Plan {
                                     // What the run path would refuse (sampling with leap
                                     // values, a frame over the budget...), refused before any
                                     // run rather than when the run comes up.
-                                    run.validate()
-                                        .map_err(|e| bad("modes", format!("{}: {e}", the_run())))?;
+                                    run.validate().map_err(|e| {
+                                        bad(
+                                            "modes",
+                                            format!(
+                                                "{}: {e}; leave such runs out with [[exclude]] \
+                                                 (docs/experiments.md)",
+                                                the_run()
+                                            ),
+                                        )
+                                    })?;
                                     // What preparing the run would refuse on its dataset,
                                     // refused here, before the sweep writes anything (after the
                                     // runs left out above, which are not errors); once per
