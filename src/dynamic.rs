@@ -683,6 +683,8 @@ pub struct StepView<'a> {
     pub measurements: &'a run::Measurements,
     /// The transfer function's name.
     pub transfer_function: &'a str,
+    /// `SequenceReport::table_on_chip_bits`: the map with the tables the map mode keeps on chip.
+    pub table_on_chip_bits: Option<u64>,
 }
 
 /// Runs the frame loop of `source` with `run` (cycle model; its dataset is ignored; its
@@ -842,6 +844,7 @@ pub fn run_sequence(
             frame: &report.frame,
             measurements: &report.measurements,
             transfer_function: &report.transfer_function,
+            table_on_chip_bits,
         })?;
         steps.push(step_report);
     }

@@ -192,6 +192,16 @@ fn a_sequence_sweep_equals_vizsim_sequence_and_resumes_without_duplicates() {
                 ] {
                     assert_eq!(line[field], step[field], "{source} {map} step {k} {field}");
                 }
+                // The tables the strategy keeps on chip: only `update` keeps them here.
+                assert_eq!(
+                    line["table_on_chip_bits"], report["table_on_chip_bits"],
+                    "{source} {map} step {k}"
+                );
+                assert_eq!(
+                    line["table_on_chip_bits"].is_null(),
+                    map != "during-update",
+                    "{source} {map}"
+                );
             }
             rates.insert((source, map), report["fps"].as_f64().unwrap());
         }

@@ -152,6 +152,10 @@ fn step_line(run: &RunSpec, view: &StepView, experiment: &str, clock_mhz: f64) -
     ] {
         obj.insert(field.into(), value);
     }
+    // Only where the map mode keeps the tables: the other lines stay as they were.
+    if let Some(bits) = view.table_on_chip_bits {
+        obj.insert("table_on_chip_bits".into(), json!(bits));
+    }
     match crate::run::fps_of(total_ns) {
         Some(fps) => obj.insert("fps".into(), json!(fps)),
         None => obj.remove("fps"),
