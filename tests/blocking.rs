@@ -776,6 +776,51 @@ fn the_summary_says_how_much_more_memory_blocking_takes_when_it_saves_none() {
     );
 }
 
+/// `sim` says when the occupancy map and the block table together exceed the on-chip SRAM
+/// (a review found a 491,520-bit table beside a 131,072-bit SRAM without a word), and says
+/// nothing when they fit.
+#[test]
+fn sim_says_when_the_map_and_the_block_table_exceed_the_sram() {
+    let sim = |sram: &str| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_vizsim"))
+            .args([
+                "sim",
+                "--dataset",
+                "phantom:sphere:32",
+                "--size",
+                "8x8",
+                "--subcube",
+                "8",
+                "--set",
+                "blocking.enabled=true",
+                "--set",
+                "blocking.block_size=8",
+                "--set",
+                &format!("occupancy.sram_bits={sram}"),
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    // 64 blocks × (log2 of 64 slots + 1 valid bit) = 960 table bits, and 64 map bits.
+    let small = sim("512");
+    assert!(
+        small.contains("table 960 bits on chip")
+            && small.contains(
+                "note: the occupancy map (64 bits) and the block table (960 bits) need 1024 \
+                 bits on chip, more than occupancy.sram_bits (512)"
+            ),
+        "{small}"
+    );
+    let fits = sim("1024");
+    assert!(!fits.contains("block table"), "{fits}");
+}
+
 /// An experiment's mode sets the leaping structure, the bricks and iso mode after its axes
 /// were validated: crossed with blocking, each combination `sim` refuses is refused by the
 /// sweep too, naming the run (a sweep reported cycles for blocked leap values, which read no

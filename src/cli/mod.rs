@@ -612,6 +612,7 @@ pub fn feature_lines(config: &HardwareConfig, m: &vizsim::run::Measurements) -> 
         structure_memory_text(m),
         blocking_text(m),
         blocking_cost_note(config, m),
+        blocking_sram_note(config, m),
     ]
     .into_iter()
     .flatten()
@@ -719,6 +720,26 @@ fn blocking_text(m: &vizsim::run::Measurements) -> Option<String> {
         text += &format!("; {zero} samples in inactive blocks read as zero (no memory read)");
     }
     Some(text)
+}
+
+/// When the occupancy map and the block table together exceed the on-chip SRAM the
+/// configuration names (both live in the chip's block RAM; a map alone over it is refused when
+/// the run is prepared). None when they fit or blocking is off.
+fn blocking_sram_note(config: &HardwareConfig, m: &vizsim::run::Measurements) -> Option<String> {
+    let table = m.blocking.as_ref()?.table_sram_bits;
+    let map = m.structure_memory.as_ref().map_or(0, |s| s.map_sram_bits);
+    let sram = config.occupancy.sram_bits;
+    (map + table > sram).then(|| {
+        format!(
+            "note: the occupancy map ({}) and the block table ({}) need {} on chip, more than \
+             occupancy.sram_bits ({sram}): a chip for this design needs that much block RAM \
+             (--set occupancy.sram_bits={} to model one), or larger blocks (fewer table entries)",
+            count(map, "bit", "bits"),
+            count(table, "bit", "bits"),
+            count(map + table, "bit", "bits"),
+            (map + table).next_power_of_two()
+        )
+    })
 }
 
 /// When blocking takes more memory than the unblocked volume, why: a slot of (B + 2)³ voxels
