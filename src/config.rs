@@ -16,6 +16,35 @@ use crate::occupancy::{OccupancyKind, SUBCUBE_SIZES};
 pub const DEFAULT_TOML: &str = include_str!("../configs/hardware/vizard2.toml");
 pub const DEFAULT_NAME: &str = "configs/hardware/vizard2.toml";
 
+/// What a run reads of its configuration: its model and, when it cannot leap whatever the
+/// configuration asks, why (`HardwareConfig::why_without_effect`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ConfigUse {
+    pub model: crate::run::Model,
+    pub not_leaping: Option<&'static str>,
+}
+
+/// Fields only the cycle model reads (field paths or their prefixes): the clock, the ray
+/// queue, the skip unit's latency, the memory's queues, timing and host link, the lookup
+/// stage and the ray setup's costs. The untimed models ignore them.
+const TIMING_FIELDS: [&str; 15] = [
+    "clock.frequency_mhz",
+    "ray_queue.",
+    "skip.latency",
+    "sdram.",
+    "memory.address_fifo_depth",
+    "memory.voxel_fifo_depth",
+    "memory.overtaking",
+    "memory.max_bypass",
+    "memory.row_policy",
+    "memory.distance_placement",
+    "memory.host_link_bits",
+    "memory.host_link_mhz",
+    "blocking.lookup_latency",
+    "bricks.setup",
+    "bricks.table_entry_bytes",
+];
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct HardwareConfig {
@@ -643,55 +672,52 @@ impl HardwareConfig {
             .collect()
     }
 
-    /// The fields that differ from the default but do nothing in this configuration, because
-    /// the feature they belong to is off (`iso.value` without `iso.enabled`), each with the
-    /// reason: a setting that is shown as set while nothing reads it misleads.
-    /// `not_leaping`: why the run does not leap whatever the configuration asks (the float
-    /// model; a sequence's `--map none`), None when it leaps as configured; then the leaping
-    /// structure's fields are without effect too (`why_without_effect`).
-    pub fn settings_without_effect(&self, not_leaping: Option<&'static str>) -> Vec<String> {
-        let t = &self.sdram;
+    /// The fields that differ from the default but do nothing in this run, each with the
+    /// reason (`why_without_effect`): a setting that is shown as set while nothing reads it
+    /// misleads.
+    pub fn settings_without_effect(&self, used: ConfigUse) -> Vec<String> {
         self.differences_from_default()
             .into_iter()
             .filter_map(|difference| {
                 let path = difference.split(" = ").next().unwrap_or_default();
-                // Timing rules that another rule always outlasts bind nothing (on a datasheet
-                // t_rc is t_ras + t_rp, and t_ras at least t_rcd).
-                let outlasted = match path {
-                    "sdram.t_rc" if t.t_rc < t.t_ras + t.t_rp => Some(format!(
-                        "shorter than t_ras + t_rp = {}: ACT to PRE to ACT takes longer",
-                        t.t_ras + t.t_rp
-                    )),
-                    "sdram.t_ras" if t.t_ras < t.t_rcd => Some(format!(
-                        "shorter than t_rcd = {}: a row is open until its first READ anyway",
-                        t.t_rcd
-                    )),
-                    _ => None,
-                };
-                outlasted
-                    .or_else(|| {
-                        self.why_without_effect(path, not_leaping)
-                            .map(str::to_string)
-                    })
+                self.why_without_effect(path, used)
                     .map(|why| format!("{difference} ({why})"))
             })
             .collect()
     }
 
-    /// Why the field at `path` (`iso.value`) does nothing in this configuration, if it does
-    /// nothing: the switch of its feature that is off; or, in a run that does not leap
-    /// (`not_leaping`, the reason: the float model...), a field of the leaping structures
-    /// (`occupancy.*` but the kind that chooses the bricks' test, `leap_values.*`,
-    /// `volume_word.*`, `skip.policy`).
-    pub fn why_without_effect(
-        &self,
-        path: &str,
-        not_leaping: Option<&'static str>,
-    ) -> Option<&'static str> {
+    /// Why the field at `path` (`iso.value`) does nothing in this configuration and run, if it
+    /// does nothing:
+    /// - a timing rule that another rule always outlasts;
+    /// - the switch of its feature is off (`iso.enabled`, `memory.overtaking`,
+    ///   `sdram.refresh`...), or there is no leaping structure for the skip unit's widths;
+    /// - the run's model does not read it: the untimed models (float, step) no timing field,
+    ///   the cycle model not the step model's cost;
+    /// - in a run that does not leap (`used.not_leaping`: the float model, a sequence's
+    ///   `--map none`), a field of the leaping structures (`occupancy.*` but the kind that
+    ///   chooses the bricks' and blocks' test, `leap_values.*`, `volume_word.*`, `skip.policy`).
+    pub fn why_without_effect(&self, path: &str, used: ConfigUse) -> Option<String> {
+        let t = &self.sdram;
+        // On a datasheet t_rc is t_ras + t_rp, and t_ras at least t_rcd.
+        match path {
+            "sdram.t_rc" if t.t_rc < t.t_ras + t.t_rp => {
+                return Some(format!(
+                    "shorter than t_ras + t_rp = {}: ACT to PRE to ACT takes longer",
+                    t.t_ras + t.t_rp
+                ))
+            }
+            "sdram.t_ras" if t.t_ras < t.t_rcd => {
+                return Some(format!(
+                    "shorter than t_rcd = {}: a row is open until its first READ anyway",
+                    t.t_rcd
+                ))
+            }
+            _ => {}
+        }
         let structure = self.occupancy.structure;
         let no_map = structure == LeapStructure::Map && self.occupancy.subcube == 0;
         // (field prefix, field that is the switch itself, the feature is off, why)
-        let rules: [(&str, &str, bool, &str); 10] = [
+        let rules: [(&str, &str, bool, &str); 17] = [
             (
                 "iso.",
                 "iso.enabled",
@@ -735,6 +761,25 @@ impl HardwareConfig {
                 "geometry.shape is \"none\"",
             ),
             (
+                "memory.overtaking_window",
+                "",
+                !self.memory.overtaking,
+                "memory.overtaking is false",
+            ),
+            (
+                "memory.max_bypass",
+                "",
+                !self.memory.overtaking,
+                "memory.overtaking is false",
+            ),
+            (
+                "sdram.refresh_interval",
+                "",
+                !t.refresh,
+                "sdram.refresh is false",
+            ),
+            ("sdram.t_rfc", "", !t.refresh, "sdram.refresh is false"),
+            (
                 "occupancy.sram_bits",
                 "",
                 no_map,
@@ -748,17 +793,51 @@ impl HardwareConfig {
             ),
             // Which steps in empty space sample: without a leaping structure none is empty.
             ("skip.policy", "", no_map, "no leaping structure"),
+            // The skip unit's leap arithmetic; the skip latency applies to every step.
+            ("skip.reciprocal_bits", "", no_map, "no leaping structure"),
+            (
+                "skip.distance_frac_bits",
+                "",
+                no_map,
+                "no leaping structure",
+            ),
+            // The test of empty sub-cubes, bricks and blocks.
+            (
+                "occupancy.kind",
+                "",
+                no_map && self.bricks.size == 0 && !self.blocking.enabled,
+                "no leaping structure, bricks or blocking",
+            ),
         ];
         let switch_off = rules
             .iter()
             .find(|(prefix, switch, off, _)| *off && path.starts_with(prefix) && path != *switch)
             .map(|(_, _, _, why)| *why);
-        // Bricks follow `occupancy.kind` in every model, leaping or not.
+        // Bricks and blocks follow `occupancy.kind` in every model, leaping or not.
         let leaping_field = ["occupancy.", "leap_values.", "volume_word.", "skip.policy"]
             .iter()
             .any(|prefix| path.starts_with(prefix))
-            && !(path == "occupancy.kind" && self.bricks.size > 0);
-        switch_off.or(not_leaping.filter(|_| leaping_field))
+            && !(path == "occupancy.kind" && (self.bricks.size > 0 || self.blocking.enabled));
+        let model = match used.model {
+            // The untimed models: what only the pipeline's clock, queues and memory timing read
+            // (the memory's layout stays: the blocking and distance figures report rows).
+            crate::run::Model::Float | crate::run::Model::Step => TIMING_FIELDS
+                .iter()
+                .any(|prefix| path.starts_with(prefix))
+                .then_some(if used.model == crate::run::Model::Float {
+                    "the float model is untimed"
+                } else {
+                    "the step model counts steps, not cycles"
+                }),
+            crate::run::Model::Cycle => (path == "clock.step_time_ns")
+                .then_some("the step model's cost per step; the cycle model counts cycles"),
+        };
+        // A run that cannot leap at all says so first: it is the reason whatever the switches.
+        used.not_leaping
+            .filter(|_| leaping_field)
+            .or(switch_off)
+            .or(model)
+            .map(str::to_string)
     }
 
     /// The ERT threshold the models apply: None when ERT is off.

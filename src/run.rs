@@ -251,6 +251,14 @@ impl RunDescription {
         }
     }
 
+    /// What this run reads of its configuration (`HardwareConfig::why_without_effect`).
+    pub fn config_use(&self) -> crate::config::ConfigUse {
+        crate::config::ConfigUse {
+            model: self.model,
+            not_leaping: self.why_not_leaping(),
+        }
+    }
+
     /// Why this run does not leap although its configuration may ask it to (the float
     /// reference, but with homogeneous leap values), None when it leaps as configured: then
     /// the leaping structure's fields are without effect

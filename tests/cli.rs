@@ -2037,6 +2037,13 @@ fn settings_whose_feature_is_off_are_named_as_without_effect() {
         "occupancy.hierarchy=true",
         "skip.policy=sample-then-leap",
         "sdram.t_rc=3",
+        "memory.overtaking=false",
+        "memory.overtaking_window=2",
+        "sdram.refresh=false",
+        "sdram.refresh_interval=100",
+        "skip.reciprocal_bits=2",
+        "occupancy.kind=\"zero\"",
+        "clock.step_time_ns=5",
     ]);
     for expected in [
         "note: without effect here:",
@@ -2049,14 +2056,54 @@ fn settings_whose_feature_is_off_are_named_as_without_effect() {
         // Sections not written out while off: named by the --set that was given.
         "--set bricks.setup=table (bricks.size is 0)",
         "--set geometry.radius=5.0 (geometry.shape is \"none\")",
+        // A review found these switched off, or unread, without a word.
+        "memory.overtaking_window = 2 (memory.overtaking is false)",
+        "sdram.refresh_interval = 100 (sdram.refresh is false)",
+        "skip.reciprocal_bits = 2 (no leaping structure)",
+        "occupancy.kind = \"zero\" (no leaping structure, bricks or blocking)",
+        "clock.step_time_ns = 5.0 (the step model's cost per step; the cycle model counts cycles)",
     ] {
         assert!(idle.contains(expected), "{expected}: {idle}");
     }
+    // The untimed step model reads no timing field, and reads the cost per step.
+    let png = scratch("timing-fields").join("x.png");
+    let fixed = String::from_utf8_lossy(
+        &succeeds(&[
+            "render",
+            "--model",
+            "fixed",
+            "--dataset",
+            "phantom:sphere:16",
+            "--size",
+            "8x8",
+            "-o",
+            png.to_str().unwrap(),
+            "--set",
+            "skip.latency=20",
+            "--set",
+            "sdram.cl=3",
+            "--set",
+            "clock.step_time_ns=5",
+        ])
+        .stdout,
+    )
+    .into_owned();
+    for expected in [
+        "skip.latency = 20 (the step model counts steps, not cycles)",
+        "sdram.cl = 3 (the step model counts steps, not cycles)",
+    ] {
+        assert!(fixed.contains(expected), "{expected}: {fixed}");
+    }
+    assert!(!fixed.contains("clock.step_time_ns = 5.0 ("), "{fixed}");
     let used = sim(&[
         "iso.enabled=true",
         "iso.value=8",
         "occupancy.structure=distance",
         "occupancy.distance_bits=4",
+        "skip.reciprocal_bits=6",
+        "occupancy.kind=\"zero\"",
+        "memory.overtaking_window=2",
+        "sdram.refresh_interval=100",
     ]);
     assert!(!used.contains("without effect"), "{used}");
     // The ideal memory reads no SDRAM or memory field (a probe's changes ran unnoticed).

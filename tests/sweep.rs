@@ -2108,3 +2108,50 @@ fn a_folder_name_that_is_not_utf8_is_tabulated() {
     assert!(md.contains("Made by `vizsim table '"), "{md}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A sweep names the axes some of its runs do not read, and why (a review read flat lines
+/// along `memory.overtaking_window` with overtaking off, and a cycle-only axis repeated on the
+/// step model, as a design insensitive to them): the dry run and the sweep print it alike.
+#[test]
+fn a_sweep_names_the_axes_its_runs_do_not_read() {
+    let dir = temp_dir("idle-axes");
+    let text = TINY
+        .replace(
+            "modes = [\"none\", \"ert+leap4\", \"ert+leap8+hier\"]",
+            "modes = [\"ert\"]",
+        )
+        .replace("tf = [\"zero\", \"class\"]", "tf = [\"class\"]")
+        .replace("select = [0, 5, 11]", "select = [0]")
+        + "\"memory.overtaking\" = [false]\n\"memory.overtaking_window\" = [2, 8]\n";
+    let exp = write_experiment(&dir, &text);
+    let out = dir.join("out");
+    let plan = vizsim_ok(&[
+        "sweep",
+        exp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--dry-run",
+    ]);
+    // 2 datasets × 2 models × 2 rays × 2 windows = 16 runs; the step model's 8 read no queue.
+    for expected in [
+        "note: memory.overtaking_window is without effect in every one of its 16 runs \
+         (memory.overtaking is false)",
+        "note: ray_queue.rays is without effect in 8 of its 16 runs (the step model counts \
+         steps, not cycles)",
+    ] {
+        assert!(plan.contains(expected), "{expected}: {plan}");
+    }
+    // An axis every run reads gets no note.
+    let read = write_experiment(
+        &dir,
+        &TINY.replace("models = [\"step\", \"cycle\"]", "models = [\"cycle\"]"),
+    );
+    let plan = vizsim_ok(&[
+        "sweep",
+        read.to_str().unwrap(),
+        "--out",
+        dir.join("out2").to_str().unwrap(),
+        "--dry-run",
+    ]);
+    assert!(!plan.contains("note:"), "{plan}");
+}

@@ -439,7 +439,7 @@ impl HardwareArgs {
     pub fn resolved_line(
         &self,
         config: &HardwareConfig,
-        not_leaping: Option<&'static str>,
+        used: vizsim::config::ConfigUse,
     ) -> String {
         let source = match &self.config {
             Some(p) => p.display().to_string(),
@@ -454,7 +454,7 @@ impl HardwareArgs {
                 changed.join(", ")
             )
         };
-        let mut idle = config.settings_without_effect(not_leaping);
+        let mut idle = config.settings_without_effect(used);
         // A --set the configuration does not even write out while its feature is off
         // (`bricks.setup` with no bricks, `geometry.radius` with no shape) is named too.
         for assignment in &self.overrides {
@@ -462,7 +462,7 @@ impl HardwareArgs {
             if idle.iter().any(|i| i.starts_with(&format!("{path} ="))) {
                 continue;
             }
-            if let Some(why) = config.why_without_effect(path, not_leaping) {
+            if let Some(why) = config.why_without_effect(path, used) {
                 idle.push(format!("--set {} ({why})", assignment.trim()));
             }
         }

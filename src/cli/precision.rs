@@ -87,7 +87,7 @@ fn sweep_and_write(args: &PrecisionArgs, base: &vizsim::run::RunDescription) -> 
     println!(
         "{}",
         args.hardware
-            .resolved_line(&base.hardware, base.why_not_leaping())
+            .resolved_line(&base.hardware, base.config_use())
     );
     let volume = args.data.load(&args.dataset)?;
     let start = Instant::now();

@@ -80,7 +80,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     println!(
         "{}",
         args.hardware
-            .resolved_line(&desc.hardware, desc.why_not_leaping())
+            .resolved_line(&desc.hardware, desc.config_use())
     );
     // The outputs appear together or not at all; what the run says is printed after them
     // (a failed print must not leave the outputs' temporaries behind).

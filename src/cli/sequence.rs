@@ -83,7 +83,13 @@ pub fn run(args: SequenceArgs) -> Result<()> {
         let not_leaping = (args.map == MapMode::None).then_some("--map none: no leaping");
         println!(
             "{}",
-            args.hardware.resolved_line(&run.hardware, not_leaping)
+            args.hardware.resolved_line(
+                &run.hardware,
+                vizsim::config::ConfigUse {
+                    model: Model::Cycle,
+                    not_leaping
+                }
+            )
         );
     }
     let options = SequenceOptions {

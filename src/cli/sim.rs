@@ -107,10 +107,7 @@ pub fn run(args: SimArgs) -> Result<()> {
         vizsim::output::check_writable(path)?;
     }
     let config = &desc.hardware;
-    println!(
-        "{}",
-        args.hardware.resolved_line(config, desc.why_not_leaping())
-    );
+    println!("{}", args.hardware.resolved_line(config, desc.config_use()));
     // The ideal memory reads no SDRAM or memory field: a changed one would go unnoticed.
     if desc.memory != Memory::Sdram {
         let memory_fields: Vec<String> = config

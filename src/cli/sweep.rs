@@ -68,6 +68,14 @@ pub fn run(args: SweepArgs) -> Result<()> {
         }
         tally.mine += 1;
         tally.raised += !r.fits_default_sram as usize;
+        for path in r.axes.keys() {
+            let without_effect = r.run.hardware.why_without_effect(path, r.run.config_use());
+            let counts = tally.idle_axes.entry(path.clone()).or_default();
+            counts.0 += 1;
+            if let Some(why) = without_effect {
+                *counts.1.entry(why).or_default() += 1;
+            }
+        }
         if !done.contains(&r.key) {
             let m = (r.run.model == spec::Model::Cycle) as usize;
             tally.pending[m] += 1;
@@ -139,6 +147,21 @@ pub fn run(args: SweepArgs) -> Result<()> {
             tally.raised
         );
     }
+    // An axis that changes nothing reads as a design insensitive to it: say which runs do
+    // not read it, and why (the notes `sim` and `render` print for a --set).
+    for (path, (runs, reasons)) in &tally.idle_axes {
+        for (why, idle) in reasons {
+            println!(
+                "  note: {path} is without effect in {} ({why}): their figures do not change \
+                 along it",
+                if idle == runs {
+                    format!("every one of its {runs} runs")
+                } else {
+                    format!("{idle} of its {runs} runs")
+                }
+            );
+        }
+    }
     let (Some(expansion), Some(lock)) = (expansion, lock) else {
         return Ok(());
     };
@@ -167,14 +190,17 @@ pub fn run(args: SweepArgs) -> Result<()> {
 }
 
 /// What the sweep's first line reports: the runs of this shard and model, those still to run
-/// per model (step, cycle) with their estimated seconds on one core, and how many had their
-/// SRAM raised.
+/// per model (step, cycle) with their estimated seconds on one core, how many had their
+/// SRAM raised, and the axes some runs do not read.
 #[derive(Default)]
 struct Tally {
     mine: usize,
     pending: [usize; 2],
     seconds: [f64; 2],
     raised: usize,
+    /// Per axis: its runs, and those of them that do not read it, by reason.
+    idle_axes:
+        std::collections::BTreeMap<String, (usize, std::collections::BTreeMap<String, usize>)>,
 }
 
 /// A duration as a person reads it: seconds under a minute, minutes under two hours, else hours.
