@@ -8,7 +8,8 @@
 //! fov_y_deg = 60.0              # perspective field of view (default 60)
 //! near = 0.0                    # near plane distance from the eye (units of the largest
 //!                               # extent with "extent", else world units; default 0)
-//! view_width = 0.25             # orthographic image width (same units; default 1)
+//! view_width = 0.25             # orthographic image width (same units; default the volume's
+//!                               # largest extent, i.e. 1 with "extent")
 //!
 //! [[key]]
 //! eye = [0.5, 0.05, 0.5]
@@ -76,18 +77,13 @@ struct PathFile {
     fov_y_deg: f32,
     #[serde(default)]
     near: f32,
-    #[serde(default = "default_view_width")]
-    view_width: f32,
+    view_width: Option<f32>,
     #[serde(default)]
     key: Vec<Key>,
 }
 
 fn default_fov() -> f32 {
     60.0
-}
-
-fn default_view_width() -> f32 {
-    1.0
 }
 
 /// A loaded, validated camera path.
@@ -99,7 +95,9 @@ pub struct CameraPath {
     pub interpolation: Interpolation,
     pub fov_y_deg: f32,
     pub near: f32,
-    pub view_width: f32,
+    /// None: the volume's largest extent, in either unit (a world-unit path used to default to
+    /// 1, one voxel: an orthographic fly-through showed a single voxel's width).
+    pub view_width: Option<f32>,
     pub keys: Vec<Key>,
 }
 
@@ -144,10 +142,9 @@ impl CameraPath {
                 raw.near
             )));
         }
-        if !(raw.view_width.is_finite() && raw.view_width > 0.0) {
+        if let Some(width) = raw.view_width.filter(|w| !(w.is_finite() && *w > 0.0)) {
             return Err(bad(format!(
-                "`view_width` = {}: must be finite and > 0",
-                raw.view_width
+                "`view_width` = {width}: must be finite and > 0"
             )));
         }
         for (i, k) in raw.key.iter().enumerate() {
@@ -295,7 +292,10 @@ impl CameraPath {
         .map_err(|e| Error::Invalid(format!("camera path {}: frame {k} of {n}: {e}", self.file)))?;
         camera.fov_y_deg = self.fov_y_deg;
         camera.near = self.near * length;
-        camera.view_width = self.view_width * length;
+        camera.view_width = match self.view_width {
+            Some(width) => width * length,
+            None => extent.max_element().max(1.0),
+        };
         Ok(camera)
     }
 }

@@ -523,3 +523,29 @@ fn render_and_sim_accept_a_path_view() {
         assert!(!err.contains("panicked"), "{err}");
     }
 }
+
+/// An orthographic path camera without `view_width` sees the volume's largest extent in either
+/// unit: a world-unit path defaulted to 1, one voxel, and an orthographic fly-through showed a
+/// uniform colour without a word (a review). A given width is taken in the path's units.
+#[test]
+fn an_orthographic_path_camera_sees_the_volume_by_default_in_either_unit() {
+    let keys = |units: &str, width: &str| {
+        format!(
+            "units = \"{units}\"\n{width}\
+             [[key]]\neye = [0.5, -1.0, 0.5]\nlook_at = [0.5, 0.5, 0.5]\nup = [0.0, 0.0, 1.0]\n\
+             [[key]]\neye = [0.6, -1.0, 0.5]\nlook_at = [0.6, 0.5, 0.5]\nup = [0.0, 0.0, 1.0]\n"
+        )
+    };
+    let extent = Vec3::new(64.0, 48.0, 32.0);
+    let width_of = |text: &str| {
+        CameraPath::parse(text, "p.toml")
+            .unwrap()
+            .camera(extent, 0, 2, Projection::Ortho, 16, 16)
+            .unwrap()
+            .view_width
+    };
+    assert_eq!(width_of(&keys("world", "")), 64.0);
+    assert_eq!(width_of(&keys("extent", "")), 64.0);
+    assert_eq!(width_of(&keys("world", "view_width = 20.0\n")), 20.0);
+    assert_eq!(width_of(&keys("extent", "view_width = 0.25\n")), 16.0);
+}
