@@ -83,9 +83,12 @@ pub struct DynamicReport {
     pub subcube: usize,
     /// Full download in volume order (x fastest), the maps built on the way (exact).
     pub download: UpdateReport,
+    /// The download with its map: `download.total_cycles` (writes + map bits), in ms. The text
+    /// gives the writes' ms and the map's cycles apart, and this sum as "in all".
     pub download_ms: f64,
     /// Full download in the layout's tiles (`VolumeUpdate::full_tiled`: whole voxel-pair words).
     pub download_tiled: UpdateReport,
+    /// The same for the tiled download.
     pub download_tiled_ms: f64,
     /// A separate scan pass through the read path (the brief's ~20 ms for 256³).
     pub scan: ScanReport,
@@ -108,15 +111,25 @@ pub struct DynamicReport {
 /// `instead` what needs only the map.
 pub fn table_sram_note(
     table_on_chip_bits: u64,
+    map_bits: u64,
     sram_bits: u64,
     needs: &str,
     instead: &str,
 ) -> Option<String> {
     (table_on_chip_bits > sram_bits).then(|| {
+        // A map over the SRAM on its own fits no way of building it.
+        let map_alone = if map_bits > sram_bits {
+            format!(
+                "the map alone ({map_bits} bits) exceeds it too, so no chip of that SRAM holds \
+                 this sub-cube size"
+            )
+        } else {
+            format!("{instead} needs only the map")
+        };
         format!(
             "note: the map, the min/max table and the prefix table need {table_on_chip_bits} bits \
              on chip, more than occupancy.sram_bits ({sram_bits}): {needs} need a chip with that \
-             much SRAM (--set occupancy.sram_bits={} to model one); {instead} needs only the map",
+             much SRAM (--set occupancy.sram_bits={} to model one); {map_alone}",
             table_on_chip_bits.next_power_of_two()
         )
     })

@@ -2229,6 +2229,18 @@ fn update_says_when_its_tables_exceed_the_sram() {
         "{small}"
     );
     assert!(!update("4096").contains("note:"));
+    assert!(
+        small.contains("the scan pass needs only the map"),
+        "{small}"
+    );
+    // A map over the SRAM on its own: no way of building it helps (a review found the scan
+    // pass offered for a 2³ map that `sim` refuses).
+    let tiny = update("32");
+    assert!(
+        tiny.contains("the map alone (64 bits) exceeds it too")
+            && !tiny.contains("scan pass needs"),
+        "{tiny}"
+    );
 }
 
 /// `sequence` says the same when its map mode keeps the tables on chip (during-update,
@@ -2271,6 +2283,30 @@ fn sequence_says_when_its_tables_exceed_the_sram() {
     assert!(!sequence("scan", "2048", false).contains("note:"));
     let json: serde_json::Value = serde_json::from_str(&sequence("scan", "2048", true)).unwrap();
     assert!(json["table_on_chip_bits"].is_null());
+}
+
+/// `update`'s JSON `download_ms` is the download with its map (writes + map bits), and the
+/// text gives that sum too, as "in all", beside the writes' time (a review found the two
+/// figures under one name).
+#[test]
+fn update_gives_the_download_with_its_map_in_text_and_json() {
+    let args = ["update", "phantom:metaballs:32", "--subcube", "8"];
+    let text = String::from_utf8_lossy(&succeeds(&args).stdout).into_owned();
+    let json: serde_json::Value =
+        serde_json::from_slice(&succeeds(&[&args[..], &["--json"]].concat()).stdout).unwrap();
+    let clock = json["clock_mhz"].as_f64().unwrap();
+    for (report, ms) in [
+        ("download", "download_ms"),
+        ("download_tiled", "download_tiled_ms"),
+    ] {
+        let total = json[report]["total_cycles"].as_u64().unwrap();
+        let writes = json[report]["write_cycles"].as_u64().unwrap();
+        assert!(total > writes, "{report}: the map adds cycles");
+        let ms = json[ms].as_f64().unwrap();
+        assert!((ms - total as f64 / clock / 1e3).abs() < 1e-9, "{report}");
+        let all = format!("{} in all", vizsim::text::milliseconds(ms));
+        assert!(text.contains(&all), "{all}: {text}");
+    }
 }
 
 /// `update --next` says when rescanning the changed regions (with their stencil borders) costs

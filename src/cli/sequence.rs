@@ -185,6 +185,9 @@ pub fn run(args: SequenceArgs) -> Result<()> {
     if let Some(note) = report.table_on_chip_bits.and_then(|bits| {
         vizsim::dynamic::table_sram_note(
             bits,
+            report.subcube.map_or(0, |subcube| {
+                vizsim::occupancy::map_bits(report.dims, subcube, run.hardware.occupancy.hierarchy)
+            }),
             run.hardware.occupancy.sram_bits,
             &format!("the maps --map {} builds from the table", report.map.name()),
             "--map scan",

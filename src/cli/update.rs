@@ -110,7 +110,7 @@ pub fn run(args: UpdateArgs) -> Result<()> {
     println!(
         "download in volume order: {} voxels, {} host bytes; {} cycles ({}; host link bound {} cycles), \
          {} WRITEs ({:.2} per voxel, {} row misses), write stalls {} cycles; \
-         map during the update: +{} cycles, exact",
+         map during the update: +{} cycles, exact; {} in all",
         d.voxels_written,
         d.host_bytes,
         d.write_cycles,
@@ -120,13 +120,15 @@ pub fn run(args: UpdateArgs) -> Result<()> {
         d.writes_per_voxel,
         d.write_row_misses,
         d.write_stall_cycles,
-        d.map_cycles
+        d.map_cycles,
+        vizsim::text::milliseconds(report.download_ms)
     );
     let d = &report.download_tiled;
     println!(
         "download in tiles: {} regions, {} voxels sent (with the voxel-pair layouts a tile \
          repeats the slice above it), {} host bytes; {} cycles ({}; host link bound {} \
-         cycles), {} WRITEs ({:.2} per voxel sent, {} row misses), write stalls {} cycles",
+         cycles), {} WRITEs ({:.2} per voxel sent, {} row misses), write stalls {} cycles; \
+         with the map {} in all",
         d.regions,
         d.voxels_written,
         d.host_bytes,
@@ -136,7 +138,8 @@ pub fn run(args: UpdateArgs) -> Result<()> {
         d.writes,
         d.writes_per_voxel,
         d.write_row_misses,
-        d.write_stall_cycles
+        d.write_stall_cycles,
+        vizsim::text::milliseconds(report.download_tiled_ms)
     );
     let s = &report.scan;
     println!(
@@ -170,6 +173,7 @@ pub fn run(args: UpdateArgs) -> Result<()> {
     // on chip beside the map: say when the SRAM the configuration names cannot hold them.
     if let Some(note) = vizsim::dynamic::table_sram_note(
         report.table_on_chip_bits,
+        report.map_bits,
         config.occupancy.sram_bits,
         "the table-based rebuild and the maps built during updates",
         "the scan pass",
