@@ -967,6 +967,33 @@ fn list_options_take_commas_and_the_zero_map_is_0() {
         text.contains("sub-cube 2³") && text.contains("sub-cube 16³"),
         "{text}"
     );
+    // The widths checked are named, with the shipped ones when they differ.
+    assert!(
+        text.contains(
+            "widths: position 5, increment 5, reciprocal 5, distance 5 bits; the shipped \
+             configuration (configs/hardware/vizard2.toml) has --position-bits 12 \
+             --increment-bits 12 --reciprocal-bits 8 --distance-bits 4"
+        ),
+        "{text}"
+    );
+    let shipped = succeeds(&[
+        "verify-skip",
+        "--position-bits",
+        "12",
+        "--increment-bits",
+        "12",
+        "--reciprocal-bits",
+        "8",
+        "--distance-bits",
+        "4",
+        "--subcube",
+        "2",
+    ]);
+    let shipped = String::from_utf8_lossy(&shipped.stdout);
+    assert!(
+        shipped.contains("(the shipped configuration's)"),
+        "{shipped}"
+    );
     let dir = scratch("occupancy-0");
     let png = |name: &str| dir.join(name).to_str().unwrap().to_string();
     let json = |name: &str| dir.join(name).to_str().unwrap().to_string();

@@ -178,6 +178,9 @@ pub fn run(args: VerifySkipArgs) -> Result<()> {
             super::thousands(cases)
         );
     }
+    if !json {
+        println!("{}", widths_line(&widths));
+    }
     let mut reports = Vec::new();
     for (s, params) in runs {
         let report = verify_exhaustive(&params).map_err(|e| anyhow::anyhow!("verify-skip: {e}"))?;
@@ -215,4 +218,39 @@ pub fn run(args: VerifySkipArgs) -> Result<()> {
          this rounding (the report above says where first)"
     );
     Ok(())
+}
+
+/// The widths checked, and the shipped configuration's when they differ: the options' defaults
+/// are not the shipped widths (a review ran plain `verify-skip` believing it checked them).
+fn widths_line(widths: &vizsim::skip::SkipWidths) -> String {
+    let config = vizsim::config::HardwareConfig::default_config();
+    let shipped = [
+        ("--position-bits", config.ray.position_frac_bits),
+        ("--increment-bits", config.ray.increment_frac_bits),
+        ("--reciprocal-bits", config.skip.reciprocal_bits),
+        ("--distance-bits", config.skip.distance_frac_bits),
+    ];
+    let checked = [
+        widths.pos_frac_bits,
+        widths.inc_frac_bits,
+        widths.reciprocal_bits,
+        widths.distance_frac_bits,
+    ];
+    let line = format!(
+        "widths: position {}, increment {}, reciprocal {}, distance {} bits",
+        checked[0], checked[1], checked[2], checked[3]
+    );
+    if shipped.iter().map(|(_, bits)| *bits).eq(checked) {
+        format!("{line} (the shipped configuration's)")
+    } else {
+        format!(
+            "{line}; the shipped configuration ({}) has {}",
+            vizsim::config::DEFAULT_NAME,
+            shipped
+                .iter()
+                .map(|(option, bits)| format!("{option} {bits}"))
+                .collect::<Vec<_>>()
+                .join(" ")
+        )
+    }
 }
