@@ -668,3 +668,67 @@ map = ["update"]
         e.skipped.iter().map(|s| &s.reason).collect::<Vec<_>>()
     );
 }
+
+/// `sequence --projection persp` renders its steps in perspective, as `sim` does (a review
+/// found a perspective fly-through over a moving volume possible only through an experiment):
+/// step 0, the download with its exact map, takes the cycles `sim` takes on that volume.
+#[test]
+fn a_sequence_renders_in_perspective_as_sim_does() {
+    let view = format!(
+        "path:{}/configs/paths/tube.toml:1/4",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let cycles = |projection: &str| {
+        let out = vizsim(&[
+            "sequence",
+            "--source",
+            "phantom:metaballs:32",
+            "--steps",
+            "1",
+            "--subcube",
+            "8",
+            "--size",
+            "32x32",
+            "--view",
+            &view,
+            "--projection",
+            projection,
+            "--json",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        report["steps"][0]["render_cycles"].as_u64().unwrap()
+    };
+    let stats = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("vizsim-sequence-persp-{}.json", std::process::id()));
+    let sim = vizsim(&[
+        "sim",
+        "--dataset",
+        "phantom:metaballs:32",
+        "--subcube",
+        "8",
+        "--size",
+        "32x32",
+        "--view",
+        &view,
+        "--projection",
+        "persp",
+        "--json",
+        stats.to_str().unwrap(),
+    ]);
+    assert!(
+        sim.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sim.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    let _ = std::fs::remove_file(&stats);
+    let persp = cycles("persp");
+    assert_eq!(persp, json["cycles"].as_u64().unwrap());
+    assert_ne!(persp, cycles("ortho"));
+}

@@ -48,6 +48,9 @@ pub struct SequenceArgs {
     /// `front`, `orbit:K/N` or `path:FILE:K/N` (a camera path, docs/model.md).
     #[arg(long, default_value = "front")]
     view: String,
+    /// Projection, as for `sim` (a perspective fly-through over a moving volume).
+    #[arg(long, value_enum, default_value = "ortho")]
+    projection: super::ProjectionArg,
     /// Image size WxH.
     #[arg(long, default_value = "256x256")]
     size: String,
@@ -74,6 +77,7 @@ pub fn run(args: SequenceArgs) -> Result<()> {
     );
     let run = RunDescription {
         view: args.view.clone(),
+        projection: args.projection.into(),
         size: parse_image_size(&args.size).context("--size")?,
         ..RunDescription::new(&args.source, &args.tf, Model::Cycle, config)
     };
