@@ -308,6 +308,32 @@ pub enum GeometryShape {
     DepthFile,
 }
 
+/// The published cost of one step of the functional model, in ns (the preset's
+/// `clock.step_time_ns`).
+pub const PUBLISHED_STEP_TIME_NS: f64 = 12.5;
+
+/// A step time as output names it: "the published 12.5 ns per step", or the configured value
+/// as `clock.step_time_ns = 5 ns per step, not the published 12.5 ns`, so a changed step time
+/// is not called published.
+pub fn step_cost_text(step_time_ns: f64) -> String {
+    if step_time_ns == PUBLISHED_STEP_TIME_NS {
+        format!("the published {PUBLISHED_STEP_TIME_NS} ns per step")
+    } else {
+        format!(
+            "clock.step_time_ns = {} ns per step, not the published {PUBLISHED_STEP_TIME_NS} ns",
+            ns_text(step_time_ns)
+        )
+    }
+}
+
+/// A time in ns with at most 6 decimals and no trailing zeros: `5`, `12.5`, `3.3` (a step time
+/// recovered as frame time / steps may carry rounding noise in the last bits).
+pub fn ns_text(ns: f64) -> String {
+    let text = format!("{ns:.6}");
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    text.to_string()
+}
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ClockConfig {

@@ -213,6 +213,60 @@ impl Metric {
     }
 }
 
+/// What a table's cells of `model` ("step" or "cycle") are measured by, for its title: the
+/// clock of the model's timing, or the image or map the metric reads. The step model's clock
+/// is the step time the lines ran with (their frame time / steps, as no line names it unless
+/// it is swept): "published" only for 12.5 ns, each value when the runs used several.
+pub fn measured_by(metric: Metric, model: &str, lines: &[&Value]) -> String {
+    match (metric, model) {
+        // Skippable sub-cubes are a property of the map, not of a model's timing.
+        (Metric::Skippable, _) => "occupancy map".into(),
+        // The image, not the timing: the model's frame, whatever its clock.
+        (Metric::ImageError | Metric::Psnr | Metric::PixelsOff, "step") => {
+            "step model's image".into()
+        }
+        (Metric::ImageError | Metric::Psnr | Metric::PixelsOff, _) => {
+            "cycle-accurate model's image".into()
+        }
+        (_, "step") => {
+            let step_times: BTreeSet<String> = lines
+                .iter()
+                .filter_map(|l| {
+                    let ns = l.get("frame_time_ns").and_then(Value::as_f64)?;
+                    let steps = l.get("steps").and_then(Value::as_f64)?;
+                    (steps > 0.0).then(|| crate::config::ns_text(ns / steps))
+                })
+                .collect();
+            let published = crate::config::ns_text(crate::config::PUBLISHED_STEP_TIME_NS);
+            let mut by_value: Vec<&String> = step_times.iter().collect();
+            by_value.sort_by(|a, b| {
+                let number = |t: &str| t.parse::<f64>().unwrap_or(f64::INFINITY);
+                number(a).total_cmp(&number(b))
+            });
+            match by_value.as_slice() {
+                // No line took a step: no step time to name.
+                [] => "step model".into(),
+                [one] if **one == published => {
+                    format!("step model, published cost {published} ns per step")
+                }
+                [one] => format!(
+                    "step model, {}",
+                    crate::config::step_cost_text(one.parse().unwrap_or(f64::NAN))
+                ),
+                several => format!(
+                    "step model, clock.step_time_ns per run: {} ns per step",
+                    several
+                        .iter()
+                        .map(|s| s.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            }
+        }
+        _ => "cycle-accurate model at its clock".into(),
+    }
+}
+
 /// A grouping field of a result line: a top-level field (`dataset`, `tf`, `mode`, `model`,
 /// `frame`) or a swept hardware field by its dotted path (`ray_queue.rays`).
 /// ": " and the swept fields of `lines`, comma-separated ("" when nothing is swept).
@@ -1039,6 +1093,43 @@ mod tests {
         assert_eq!(written(&[1.5, 4096.0]), ["2", "4096"]);
         assert_eq!(written(&[2.5e5, 4.35e6]), ["0.25 M", "4.35 M"]);
         assert_eq!(written(&[4.35e6, 1.7e308]), ["4.350e6", "1.700e308"]);
+    }
+
+    /// The step model's title names the step time the lines ran with: "published" only for
+    /// 12.5 ns (it said so at any `clock.step_time_ns`), each value when they differ.
+    #[test]
+    fn the_step_models_title_names_the_step_time_its_runs_used() {
+        use super::measured_by;
+        let run = |steps: u64, ns: f64| serde_json::json!({"steps": steps, "frame_time_ns": steps as f64 * ns});
+        let title = |lines: &[serde_json::Value]| {
+            let lines: Vec<&serde_json::Value> = lines.iter().collect();
+            measured_by(Metric::Fps, "step", &lines)
+        };
+        let published = [run(1000, 12.5), run(777, 12.5)];
+        assert_eq!(
+            title(&published),
+            "step model, published cost 12.5 ns per step"
+        );
+        let five = title(&[run(1000, 5.0), run(3, 5.0)]);
+        assert_eq!(
+            five,
+            "step model, clock.step_time_ns = 5 ns per step, not the published 12.5 ns"
+        );
+        // Rounding noise of frame time / steps does not make two values of one.
+        let odd = title(&[run(1000, 3.3), run(7, 3.3), run(123457, 3.3)]);
+        assert!(odd.contains(" = 3.3 ns per step"), "{odd}");
+        let both = title(&[run(1000, 12.5), run(1000, 5.0), run(0, 5.0)]);
+        assert_eq!(
+            both,
+            "step model, clock.step_time_ns per run: 5, 12.5 ns per step"
+        );
+        assert_eq!(title(&[run(0, 12.5)]), "step model");
+        // The cycle model's clock is not the step time.
+        let lines: Vec<&serde_json::Value> = published.iter().collect();
+        assert_eq!(
+            measured_by(Metric::Fps, "cycle", &lines),
+            "cycle-accurate model at its clock"
+        );
     }
 
     /// Waits for distance and leap-value words are their own metric: 0 on a cycle-model line

@@ -1818,6 +1818,40 @@ fn a_frame_of_no_steps_has_no_frame_rate() {
     assert!(report.get("fps").is_none(), "fps {}", report["fps"]);
 }
 
+/// The step model's frame time is called published only at the published 12.5 ns per step
+/// (`--set clock.step_time_ns=5` printed "at the published 5 ns per step").
+#[test]
+fn only_the_published_step_time_is_called_published() {
+    let dir = scratch("step-time");
+    let png = dir.join("f.png");
+    let render = |set: &[&str]| {
+        let mut args = vec![
+            "render",
+            "--model",
+            "fixed",
+            "--dataset",
+            "phantom:sphere:32",
+            "--size",
+            "8x8",
+            "-o",
+            png.to_str().unwrap(),
+        ];
+        args.extend_from_slice(set);
+        String::from_utf8_lossy(&succeeds(&args).stdout).into_owned()
+    };
+    let published = render(&[]);
+    assert!(
+        published.contains(" fps at the published 12.5 ns per step"),
+        "{published}"
+    );
+    let five = render(&["--set", "clock.step_time_ns=5"]);
+    assert!(
+        five.contains(" fps at clock.step_time_ns = 5 ns per step, not the published 12.5 ns"),
+        "{five}"
+    );
+    assert!(!five.contains("published 5"), "{five}");
+}
+
 /// `precision` writes its tables, JSON and charts together or not at all: a folder where one of
 /// them goes left the others (and the chart's temporaries) behind, a failed run that looked
 /// finished (found by probing).

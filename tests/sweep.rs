@@ -698,6 +698,69 @@ fn table_titles_say_what_a_cell_holds_and_model_is_no_row() {
     }
 }
 
+/// A table of step-model runs with `clock.step_time_ns` swept names each step time, not "the
+/// published cost 12.5 ns" over cells computed at 5 ns; one at the preset's says published.
+#[test]
+fn step_model_tables_name_the_step_times_their_runs_used() {
+    let dir = temp_dir("step-time");
+    let experiment = r#"
+name = "step-time"
+datasets = ["phantom:sphere:16"]
+tf = ["class"]
+modes = ["ert"]
+models = ["step"]
+[frames]
+orbit = 72
+select = [0]
+size = "8x8"
+[axes]
+"clock.step_time_ns" = [5.0, 12.5]
+"#;
+    let (_, runs) = swept(&dir, experiment);
+    let title = |rows: &str| {
+        let out = dir.join("tables");
+        let _ = std::fs::remove_dir_all(&out);
+        vizsim_ok(&[
+            "table",
+            runs.to_str().unwrap(),
+            "--rows",
+            rows,
+            "--metric",
+            "fps",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let markdown = std::fs::read_to_string(out.join("step-fps.md")).unwrap();
+        markdown.lines().next().unwrap().to_string()
+    };
+    let both = title("dataset,clock.step_time_ns");
+    assert!(
+        both.contains("(step model, clock.step_time_ns per run: 5, 12.5 ns per step)"),
+        "{both}"
+    );
+    assert!(!both.contains("published"), "{both}");
+    let five = dir.join("five");
+    std::fs::create_dir_all(&five).unwrap();
+    let (_, runs) = swept(&five, &experiment.replace("[5.0, 12.5]", "[5.0]"));
+    let out = five.join("tables");
+    vizsim_ok(&[
+        "table",
+        runs.to_str().unwrap(),
+        "--metric",
+        "fps",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let markdown = std::fs::read_to_string(out.join("step-fps.md")).unwrap();
+    assert!(
+        markdown.starts_with(
+            "### frame rate (fps) (step model, clock.step_time_ns = 5 ns per step, not the \
+             published 12.5 ns)"
+        ),
+        "{markdown}"
+    );
+}
+
 #[test]
 fn shards_merge_to_the_unsharded_sweep() {
     let dir = temp_dir("shards");

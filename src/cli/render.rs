@@ -114,11 +114,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
         m.rays_terminated_early,
         m.frame_time_ns
             .map(|t| format!(
-                ", {} steps = {:.3} ms/frame{} at the published {} ns per step (cycle-accurate: `vizsim sim`)",
+                ", {} steps = {:.3} ms/frame{} at {} (cycle-accurate: `vizsim sim`)",
                 m.steps,
                 t / 1e6,
                 m.fps.map_or(", no frame rate (no ray took a step)".to_string(), |fps| format!(" = {fps:.1} fps")),
-                desc.hardware.clock.step_time_ns
+                vizsim::config::step_cost_text(desc.hardware.clock.step_time_ns)
             ))
             .unwrap_or_default(),
         report.wall_seconds,

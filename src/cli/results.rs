@@ -286,19 +286,7 @@ pub fn write_tables(
                         continue;
                     }
                     tabulated[m] = true;
-                    // Skippable sub-cubes are a property of the map, not of a model's timing.
-                    let clock = match (metric, model) {
-                        (Metric::Skippable, _) => "occupancy map",
-                        // The image, not the timing: the model's frame, whatever its clock.
-                        (Metric::ImageError | Metric::Psnr | Metric::PixelsOff, "step") => {
-                            "step model's image"
-                        }
-                        (Metric::ImageError | Metric::Psnr | Metric::PixelsOff, _) => {
-                            "cycle-accurate model's image"
-                        }
-                        (_, "step") => "step model, published cost 12.5 ns per step",
-                        _ => "cycle-accurate model at its clock",
-                    };
+                    let clock = tables::measured_by(metric, model, &of_model);
                     let subject = format!("{} ({clock})", metric.label());
                     let mut table = tables::build(&of_model, metric, rows, columns, &subject)?;
                     table.made_by = Some(made_by.clone());
