@@ -154,6 +154,31 @@ impl Metric {
         }
     }
 
+    /// Whether the metric counts something (cycles, steps, samples, stalls, pixels): whole
+    /// numbers per frame, so its table's cells are written as whole numbers.
+    pub fn is_count(self) -> bool {
+        match self {
+            Metric::Cycles
+            | Metric::Steps
+            | Metric::Samples
+            | Metric::DiscardedAfterErt
+            | Metric::MemoryStalls
+            | Metric::LeapWordWaits
+            | Metric::RowMisses
+            | Metric::QueueEmpty
+            | Metric::TotalCycles
+            | Metric::PixelsOff => true,
+            Metric::Fps
+            | Metric::PageHits
+            | Metric::NsPerAccess
+            | Metric::CyclesPerStep
+            | Metric::Skippable
+            | Metric::PositionsCut
+            | Metric::ImageError
+            | Metric::Psnr => false,
+        }
+    }
+
     /// The result fields the metric reads, as paths of field names: the one list both
     /// `value` and the check that a present figure is a number (`read_results`) follow.
     pub fn inputs(self) -> &'static [&'static [&'static str]] {
@@ -411,6 +436,8 @@ fn display(field: &str, text: &str) -> String {
 /// One table: rows × columns of means over the frames of each cell.
 pub struct Table {
     pub title: String,
+    /// What the cells hold (their number format follows it).
+    pub metric: Metric,
     pub row_fields: Vec<String>,
     pub column_field: String,
     pub rows: Vec<(Vec<String>, Vec<Option<f64>>)>,
@@ -722,6 +749,7 @@ pub fn build(
     }
     Ok(Table {
         title: format!("{subject}, {held}"),
+        metric,
         row_fields: row_fields.to_vec(),
         column_field: column_field.to_string(),
         rows,
@@ -747,25 +775,26 @@ fn plural(noun: &str) -> String {
     }
 }
 
-/// How the cells of one column are written, chosen from the column's largest magnitude so that
-/// a column reads one way (all in millions, or all with the same decimals).
-#[derive(Clone, Copy)]
+/// How the cells of a table are written. A count (cycles, steps, stalls: `Metric::is_count`)
+/// is a whole number in every cell of its table, plain digits as in the CSV: a mean over frames
+/// differs from its cell's digits by less than 1, where "0.25 M" beside "124572" lost three
+/// digits. Another figure gets about four significant digits, its decimals chosen per column
+/// from the column's largest magnitude. A value that is not 0 never shows as 0 (`< 1`,
+/// `< 0.01`), as `text::percent` does.
+#[derive(Clone, Copy, Debug, PartialEq)]
 enum NumberFormat {
     /// Beyond any real frame's figure (an edited or corrupt result): `1.700e308`, not 300 digits.
     Scientific,
-    Millions,
     Whole,
     Decimals(usize),
 }
 
 impl NumberFormat {
-    fn for_values(values: impl Iterator<Item = f64>) -> NumberFormat {
+    fn for_values(values: impl Iterator<Item = f64>, count: bool) -> NumberFormat {
         let largest = values.map(f64::abs).fold(0.0, f64::max);
         if largest >= 1e12 {
             NumberFormat::Scientific
-        } else if largest >= 1e6 {
-            NumberFormat::Millions
-        } else if largest >= 1000.0 {
+        } else if count || largest >= 1000.0 {
             NumberFormat::Whole
         } else if largest >= 100.0 {
             NumberFormat::Decimals(1)
@@ -775,11 +804,17 @@ impl NumberFormat {
     }
 
     fn write(self, v: f64) -> String {
-        match self {
-            NumberFormat::Scientific => format!("{v:.3e}"),
-            NumberFormat::Millions => format!("{:.2} M", v / 1e6),
-            NumberFormat::Whole => format!("{v:.0}"),
-            NumberFormat::Decimals(d) => format!("{v:.d$}"),
+        let decimals = match self {
+            NumberFormat::Scientific => return format!("{v:.3e}"),
+            NumberFormat::Whole => 0,
+            NumberFormat::Decimals(d) => d,
+        };
+        let text = format!("{v:.decimals$}");
+        // The smallest step the format shows, for a value that would print as 0.
+        if v > 0.0 && text.parse::<f64>() == Ok(0.0) {
+            format!("< {:.decimals$}", 10f64.powi(-(decimals as i32)))
+        } else {
+            text
         }
     }
 }
@@ -823,8 +858,23 @@ impl Table {
                 .collect::<Vec<_>>()
                 .join("|")
         );
+        let count = self.metric.is_count();
+        // A count's format is the table's (one style, whole numbers); another figure's is its
+        // column's.
+        let table_format = NumberFormat::for_values(
+            self.rows
+                .iter()
+                .flat_map(|(_, v)| v.iter().flatten().copied()),
+            true,
+        );
         let formats: Vec<NumberFormat> = (0..self.columns.len())
-            .map(|ci| NumberFormat::for_values(self.rows.iter().filter_map(|(_, v)| v[ci])))
+            .map(|ci| {
+                if count {
+                    table_format
+                } else {
+                    NumberFormat::for_values(self.rows.iter().filter_map(|(_, v)| v[ci]), false)
+                }
+            })
             .collect();
         for (ri, (labels, values)) in self.rows.iter().enumerate() {
             let cells: Vec<String> = values
@@ -1084,15 +1134,20 @@ mod tests {
     /// (1.7e308 edited into a result) is written in scientific notation, not as 300 digits.
     #[test]
     fn a_column_is_written_in_one_format_chosen_by_its_largest_figure() {
-        let written = |values: &[f64]| -> Vec<String> {
-            let format = super::NumberFormat::for_values(values.iter().copied());
+        let written = |values: &[f64], count: bool| -> Vec<String> {
+            let format = super::NumberFormat::for_values(values.iter().copied(), count);
             values.iter().map(|&v| format.write(v)).collect()
         };
-        assert_eq!(written(&[1.5, 12.25]), ["1.50", "12.25"]);
-        assert_eq!(written(&[1.5, 120.25]), ["1.5", "120.2"]);
-        assert_eq!(written(&[1.5, 4096.0]), ["2", "4096"]);
-        assert_eq!(written(&[2.5e5, 4.35e6]), ["0.25 M", "4.35 M"]);
-        assert_eq!(written(&[4.35e6, 1.7e308]), ["4.350e6", "1.700e308"]);
+        assert_eq!(written(&[1.5, 12.25], false), ["1.50", "12.25"]);
+        assert_eq!(written(&[1.5, 120.25], false), ["1.5", "120.2"]);
+        assert_eq!(written(&[1.5, 4096.0], false), ["2", "4096"]);
+        // Millions keep every digit: 248779 was "0.25 M".
+        assert_eq!(written(&[248779.0, 4.35e6], false), ["248779", "4350000"]);
+        assert_eq!(written(&[4.35e6, 1.7e308], false), ["4.350e6", "1.700e308"]);
+        // Counts are whole numbers, 0 as `0` (it was "0.00"), a small mean not as 0.
+        assert_eq!(written(&[0.0, 12.0, 3.75], true), ["0", "12", "4"]);
+        assert_eq!(written(&[0.25, 0.5, 0.75], true), ["< 1", "< 1", "1"]);
+        assert_eq!(written(&[0.004, 0.0], false), ["< 0.01", "0.00"]);
     }
 
     /// The step model's title names the step time the lines ran with: "published" only for
@@ -1182,6 +1237,40 @@ mod tests {
         assert_eq!(table.len(), 3, "{md}");
         assert!(table.iter().all(|l| cells(l) == cells(table[0])), "{md}");
         assert!(md.contains("own \\| tf.toml"), "{md}");
+    }
+
+    /// A count's table is in one style: whole numbers in every column, every digit kept
+    /// (a column over 1 M showed "0.25 M" for 248779 beside "124572" in the next), 0 as `0`
+    /// (it was "0.00"); the CSV keeps the means as they are.
+    #[test]
+    fn a_count_is_written_whole_in_every_column() {
+        let mut lines = [
+            line("none", 0, 4_350_000, false),
+            line("none", 1, 3_000_000, false),
+            line("ert", 0, 248_779, false),
+            line("ert", 1, 248_780, false),
+            line("ert+leap8", 0, 124_572, false),
+            line("ert+leap8", 1, 124_572, false),
+        ];
+        for (l, stalls) in lines.iter_mut().zip([2_000_000, 1, 0, 0, 7, 8]) {
+            l["stall_cycles"] = serde_json::json!({ "memory": stalls });
+        }
+        let refs: Vec<&serde_json::Value> = lines.iter().collect();
+        let rows = ["dataset".to_string(), "tf".to_string()];
+        let table = |metric| build(&refs, metric, &rows, "mode", "t").unwrap();
+        let cycles = table(Metric::Cycles);
+        let md = cycles.markdown();
+        assert!(md.contains("| 3675000 | 248780 | 124572 |"), "{md}");
+        assert!(
+            cycles.csv().contains(",3675000,248779.5,124572\n"),
+            "{}",
+            cycles.csv()
+        );
+        let md = table(Metric::MemoryStalls).markdown();
+        assert!(md.contains("| 1000000 | 0 | 8 |"), "{md}");
+        // A figure that is no count keeps its decimals.
+        let md = table(Metric::CyclesPerStep).markdown();
+        assert!(md.contains("| 2.00 | 2.00 | 2.00 |"), "{md}");
     }
 
     /// A field unknown, repeated in --rows, or in both --rows and --columns is refused, naming
@@ -1275,7 +1364,7 @@ mod tests {
         let rows = ["dataset".to_string()];
         let table = build(&lines, Metric::Cycles, &rows, "mode", "t").unwrap();
         let markdown = table.markdown();
-        assert!(markdown.contains("| 1100 | 800.0 (1) |"), "{markdown}");
+        assert!(markdown.contains("| 1100 | 800 (1) |"), "{markdown}");
         assert!(
             markdown.contains("(n) only n frames of this cell"),
             "{markdown}"
@@ -1323,7 +1412,7 @@ mod tests {
         let rows = ["dataset".to_string()];
         let cycles = build(&lines, Metric::Cycles, &rows, "mode", "t").unwrap();
         let markdown = cycles.markdown();
-        assert!(markdown.contains("| 1000 (1) | ≈ 850.0 |"), "{markdown}");
+        assert!(markdown.contains("| 1000 (1) | ≈ 850 |"), "{markdown}");
         assert!(markdown.contains("≈ estimated by sampled simulation"));
         let csv = cycles.csv();
         let csv_lines: Vec<&str> = csv.lines().collect();

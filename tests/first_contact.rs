@@ -232,7 +232,7 @@ fn tables_name_swept_columns_print_every_metric_and_format_columns_one_way() {
         "{stdout}"
     );
     // One number format per column: within a column every cell has the same number of
-    // decimals (or every cell is in millions).
+    // decimals; a count (steps) has none, in any column.
     for block in stdout.split("### ").skip(1) {
         let rows: Vec<Vec<String>> = block
             .lines()
@@ -241,23 +241,21 @@ fn tables_name_swept_columns_print_every_metric_and_format_columns_one_way() {
             .collect();
         let width = rows.first().map_or(0, Vec::len);
         for c in 4..width.saturating_sub(1) {
-            let shapes: std::collections::BTreeSet<(bool, usize)> = rows
+            let decimals: std::collections::BTreeSet<usize> = rows
                 .iter()
                 .filter(|r| r[c] != "–")
                 .map(|r| {
                     let cell = r[c].trim_end_matches('*');
-                    (
-                        cell.ends_with(" M"),
-                        cell.split('.')
-                            .nth(1)
-                            .map_or(0, |d| d.trim_end_matches(" M").len()),
-                    )
+                    cell.split('.').nth(1).map_or(0, str::len)
                 })
                 .collect();
             assert!(
-                shapes.len() <= 1,
-                "column {c} mixes formats {shapes:?}:\n{block}"
+                decimals.len() <= 1,
+                "column {c} mixes formats {decimals:?}:\n{block}"
             );
+            if block.starts_with("steps per frame") {
+                assert_eq!(decimals.first(), Some(&0), "steps with decimals:\n{block}");
+            }
         }
     }
 }
