@@ -761,6 +761,63 @@ size = "8x8"
     );
 }
 
+/// `--dataset` takes a dataset's alias as `sim` does: `vessel` picks the results of `aneurism`
+/// (the tables label its rows "vessel (aneurism)"; it was refused as not in the results).
+#[test]
+fn results_filtered_by_a_dataset_alias_are_its_datasets() {
+    let dir = temp_dir("alias");
+    let experiment = r#"
+name = "alias"
+datasets = ["phantom:sphere:16", "phantom:shells:16"]
+tf = ["class"]
+modes = ["ert"]
+models = ["step"]
+[frames]
+orbit = 72
+select = [0]
+size = "8x8"
+"#;
+    let (_, runs) = swept(&dir, experiment);
+    // The sphere's results as an aneurism's (no 256³ volume needed to name one).
+    let results = runs.join("results.jsonl");
+    let text = std::fs::read_to_string(&results)
+        .unwrap()
+        .replace(
+            "\"dataset_label\":\"phantom:sphere:16\"",
+            "\"dataset_label\":\"vessel (aneurism)\"",
+        )
+        .replace("\"phantom:sphere:16\"", "\"aneurism\"");
+    std::fs::write(&results, text).unwrap();
+    let runs_ = runs.to_str().unwrap();
+    let rows = |dataset: &str| {
+        let out = dir.join(format!("t-{dataset}"));
+        vizsim_ok(&[
+            "table",
+            runs_,
+            "--dataset",
+            dataset,
+            "--metric",
+            "steps",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let csv = std::fs::read_to_string(out.join("step-steps.csv")).unwrap();
+        csv.lines().skip(1).map(str::to_string).collect::<Vec<_>>()
+    };
+    let by_alias = rows("vessel");
+    assert_eq!(by_alias.len(), 1, "{by_alias:?}");
+    assert!(
+        by_alias[0].starts_with("vessel (aneurism),"),
+        "{by_alias:?}"
+    );
+    assert_eq!(by_alias, rows("aneurism"));
+    // Another alias is still a dataset the results do not hold.
+    vizsim_fails(
+        &["table", runs_, "--dataset", "skull"],
+        "no results of --dataset skull; the results hold aneurism, phantom:shells:16",
+    );
+}
+
 #[test]
 fn shards_merge_to_the_unsharded_sweep() {
     let dir = temp_dir("shards");

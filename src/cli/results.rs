@@ -105,7 +105,8 @@ pub struct ResultsArgs {
     /// Only this model's results (`step` or `cycle`).
     #[arg(long)]
     pub model: Option<String>,
-    /// Only these datasets' results (comma-separated names as in the experiment file).
+    /// Only these datasets' results (comma-separated names as in the experiment file, or an
+    /// alias naming the same dataset: `vessel` for `aneurism`).
     #[arg(long, value_delimiter = ',')]
     pub dataset: Vec<String>,
 }
@@ -135,12 +136,18 @@ impl ResultsArgs {
         if torn {
             vizsim::note!("{}", vizsim::experiment::store::torn_note(&path));
         }
-        // A requested dataset the results do not hold (a typo) is named, not ignored.
-        if let Some(absent) = self.dataset.iter().find(|d| {
-            !lines
-                .iter()
-                .any(|l| l.get("dataset").and_then(|v| v.as_str()) == Some(d.as_str()))
-        }) {
+        // A requested dataset the results do not hold (a typo) is named, not ignored; an alias
+        // (`vessel`) picks the results of the dataset it names, as on `sim`.
+        let of = |l: &serde_json::Value, d: &str| {
+            l.get("dataset")
+                .and_then(|v| v.as_str())
+                .is_some_and(|held| vizsim::volume::dataset::same_dataset(held, d))
+        };
+        if let Some(absent) = self
+            .dataset
+            .iter()
+            .find(|d| !lines.iter().any(|l| of(l, d)))
+        {
             let held: std::collections::BTreeSet<&str> = lines
                 .iter()
                 .filter_map(|l| l.get("dataset").and_then(|v| v.as_str()))
@@ -160,10 +167,7 @@ impl ResultsArgs {
                 .model
                 .as_deref()
                 .is_none_or(|m| l.get("model").and_then(|v| v.as_str()) == Some(m));
-            let dataset_kept = self.dataset.is_empty()
-                || l.get("dataset")
-                    .and_then(|v| v.as_str())
-                    .is_some_and(|d| self.dataset.iter().any(|w| w == d));
+            let dataset_kept = self.dataset.is_empty() || self.dataset.iter().any(|d| of(l, d));
             frame_kept && model_kept && dataset_kept
         });
         anyhow::ensure!(

@@ -31,6 +31,20 @@ const ALIASES: &[(&str, &str)] = &[
 /// section 6): `--dataset skull` loads the tooth, `--dataset foot` the lossy preview.
 pub const STAND_INS: &[(&str, &str)] = &[("skull", "tooth_103x94x161"), ("foot", "foot-lossy")];
 
+/// The dataset name `spec` picks: the name an alias (`vessel`, `skull`, `foot`) stands for, or
+/// `spec` itself. The one resolution of aliases, for loading and for matching result lines.
+pub fn alias_target(spec: &str) -> &str {
+    ALIASES
+        .iter()
+        .find(|(alias, _)| *alias == spec)
+        .map_or(spec, |(_, name)| *name)
+}
+
+/// Whether two dataset names pick the same dataset (`vessel` and `aneurism`).
+pub fn same_dataset(a: &str, b: &str) -> bool {
+    alias_target(a) == alias_target(b)
+}
+
 /// The stand-in a published name resolves to, when it does.
 pub fn stand_in_for(spec: &str) -> Option<&'static str> {
     STAND_INS
@@ -141,11 +155,7 @@ pub fn load(spec: &str, data_dir: Option<&Path>) -> Result<Volume> {
         .any(|ext| spec.ends_with(ext))
         || spec.contains(std::path::MAIN_SEPARATOR)
         || spec.contains('/');
-    let name = ALIASES
-        .iter()
-        .find(|(alias, _)| *alias == spec)
-        .map(|(_, name)| *name)
-        .unwrap_or(spec);
+    let name = alias_target(spec);
     let available = match data_dir {
         // A missing file named by its path is that, whatever the data folder.
         Some(dir) if !dir.is_dir() && path_like => return Err(not_a_volume_file(spec)),
@@ -257,11 +267,7 @@ fn unknown_dataset(spec: &str, available: &[DatasetEntry], data_dir: Option<&Pat
 
 /// The file a dataset name (or alias) picks in `data_dir`, if any (not phantoms or paths).
 pub fn file_of(spec: &str, data_dir: &Path) -> Option<PathBuf> {
-    let name = ALIASES
-        .iter()
-        .find(|(alias, _)| *alias == spec)
-        .map(|(_, name)| *name)
-        .unwrap_or(spec);
+    let name = alias_target(spec);
     scan(data_dir)
         .ok()?
         .into_iter()
