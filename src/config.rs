@@ -1361,10 +1361,27 @@ pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
     let (last, parents) = keys.split_last().ok_or_else(|| bad("empty field path"))?;
     let mut current = table;
     for key in parents {
+        // A misspelt section is named with the sections there, as a misspelt field is.
+        let problem = match current.get(*key) {
+            Some(v) if v.is_table() => None,
+            Some(_) => Some(format!("`{key}` is a field, not a section")),
+            None => Some(format!(
+                "no section `{key}`; sections here: {}",
+                current
+                    .iter()
+                    .filter(|(_, v)| v.is_table())
+                    .map(|(k, _)| k.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )),
+        };
+        if let Some(problem) = problem {
+            return Err(Error::config("--set", path, problem));
+        }
         current = current
             .get_mut(*key)
             .and_then(|v| v.as_table_mut())
-            .ok_or_else(|| Error::config("--set", path, format!("no section `{key}`")))?;
+            .expect("checked above: a section");
     }
     match current.get_mut(*last) {
         Some(slot) if !slot.is_table() => {

@@ -266,7 +266,7 @@ pub fn measure(
         dims: volume.dims,
         clock_mhz: hw.clock.frequency_mhz,
         host_link_mb_per_s: hw.memory.host_link_bytes_per_second() / 1e6,
-        mapping: format!("{:?}", hw.memory.mapping).to_lowercase(),
+        mapping: hw.memory.mapping.name().to_string(),
         subcube,
         download_ms: us(download.total_cycles) / 1e3,
         download,

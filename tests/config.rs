@@ -102,6 +102,41 @@ fn set_overrides_apply_and_are_validated_like_the_file() {
     assert!(err.contains("--set"), "{err}");
 }
 
+/// A misspelt section in `--set` (or an experiment axis) lists the sections, as a misspelt
+/// field lists the fields (it said only "no section `memroy`"); a field used as a section is
+/// said to be one.
+#[test]
+fn a_misspelt_section_lists_the_sections() {
+    let err = load(vizsim::config::DEFAULT_TOML, &["memroy.rows=16"])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("no section `memroy`; sections here: ")
+            && err.contains(" memory, ")
+            && err.contains(" sdram, "),
+        "{err}"
+    );
+    let err = load(vizsim::config::DEFAULT_TOML, &["clock.step_time_ns.x=1"])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("`step_time_ns` is a field, not a section"),
+        "{err}"
+    );
+}
+
+/// A volume too large for the memory names the mapping as TOML spells it, not `Replicated4`.
+#[test]
+fn memory_messages_spell_the_mapping_as_toml_does() {
+    let config = load(vizsim::config::DEFAULT_TOML, &["memory.rows=16"]).unwrap();
+    let err = config
+        .memory
+        .check_covers([256, 256, 256], "test")
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("with mapping replicated4,"), "{err}");
+}
+
 #[test]
 fn malformed_toml_names_the_file() {
     let err = load("[ray\nposition_int_bits = 3", &[])

@@ -277,6 +277,33 @@ fn bad_experiments_fail_before_any_run_naming_axis_and_value() {
         assert!(!stderr.contains("--set"), "{edit:?}: {stderr}");
         assert!(!out.join("results.jsonl").exists(), "{edit:?}: nothing ran");
     }
+    // A mistake in the base configuration is named with the experiment that points to it
+    // (it named the hardware file alone).
+    let typo = dir.join("hw-typo.toml");
+    std::fs::write(
+        &typo,
+        vizsim::config::DEFAULT_TOML.replace("[skip]", "[skip]\nlatncy = 8"),
+    )
+    .unwrap();
+    let exp = write_experiment(
+        &dir,
+        &TINY.replace(
+            "name = \"ci-tiny\"",
+            &format!("name = \"ci-tiny\"\nconfig = {:?}", typo.to_str().unwrap()),
+        ),
+    );
+    vizsim_fails(
+        &[
+            "sweep",
+            exp.to_str().unwrap(),
+            "--out",
+            dir.join("out").to_str().unwrap(),
+        ],
+        &format!(
+            "exp.toml: field `config`: {}: invalid configuration: unknown field `latncy`",
+            typo.display()
+        ),
+    );
     // A base configuration the experiment names is named with the value it was checked on.
     let based = TINY
         .replace(

@@ -30,6 +30,17 @@ pub enum Mapping {
     Linear4,
 }
 
+impl Mapping {
+    /// The mapping as `memory.mapping` spells it in TOML (what messages show, not `Replicated4`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Mapping::Replicated4 => "replicated4",
+            Mapping::Interleaved8 => "interleaved8",
+            Mapping::Linear4 => "linear4",
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum RowPolicy {
@@ -273,9 +284,9 @@ impl MemoryConfig {
                 source,
                 "memory.rows",
                 format!(
-                    "a {dims:?} volume{} needs {rows_needed} rows per bank with mapping {:?}, the modules have {}",
+                    "a {dims:?} volume{} needs {rows_needed} rows per bank with mapping {}, the modules have {}",
                     if distance { " and its distance array" } else { "" },
-                    self.mapping, self.rows
+                    self.mapping.name(), self.rows
                 ),
             ));
         }

@@ -520,7 +520,7 @@ impl UpdateEngine {
                     "{} is too small for a volume update: the {} layout writes each voxel as {} \
                      copies into one module's write FIFO at once; at least {}",
                     config.address_fifo_depth,
-                    format!("{:?}", config.mapping).to_lowercase(),
+                    config.mapping.name(),
                     config.replicas(),
                     config.replicas()
                 ),

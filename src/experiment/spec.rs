@@ -557,7 +557,9 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
         .as_ref()
         .map(|p| p.display().to_string())
         .unwrap_or_else(|| config::DEFAULT_NAME.to_string());
-    HardwareConfig::from_toml_str(&base_text, &base_name, &[])?;
+    // A mistake in the base file is named with the experiment that points to it.
+    HardwareConfig::from_toml_str(&base_text, &base_name, &[])
+        .map_err(|e| bad("config", e.to_string()))?;
 
     let modes = experiment
         .modes
