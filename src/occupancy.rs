@@ -64,6 +64,19 @@ pub fn map_bits(dims: [usize; 3], subcube: usize, hierarchy: bool) -> u64 {
     }
 }
 
+/// Why the two-level hierarchy over `subcube`³ sub-cubes can group nothing in a volume of `dims`
+/// (None when it can): the volume is one sub-cube along every axis, so each 2×2×2 group holds
+/// that one sub-cube and leaps exactly as far as the map does. (A map with two or more sub-cubes
+/// along some axis has groups of several.)
+pub fn hierarchy_without_effect(dims: [usize; 3], subcube: usize) -> Option<String> {
+    (subcube > 0 && dims.iter().all(|&d| d.div_ceil(subcube) <= 1)).then(|| {
+        format!(
+            "the 2×2×2 group of {subcube}³ sub-cubes is larger than the volume {dims:?}: every \
+             group holds one sub-cube, so the hierarchy leaps no further than the map"
+        )
+    })
+}
+
 #[derive(Clone, Debug)]
 pub struct OccupancyMap {
     /// log2 of the sub-cube edge s.
@@ -235,5 +248,21 @@ impl OccupancyMap {
             ));
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::hierarchy_without_effect;
+
+    /// The hierarchy groups nothing only when the volume is one sub-cube along every axis; two
+    /// along any axis make groups of two.
+    #[test]
+    fn a_hierarchy_groups_nothing_only_over_a_single_sub_cube() {
+        assert!(hierarchy_without_effect([64, 64, 64], 64).is_some());
+        assert!(hierarchy_without_effect([32, 20, 7], 32).is_some());
+        assert!(hierarchy_without_effect([64, 64, 64], 32).is_none());
+        assert!(hierarchy_without_effect([64, 64, 65], 64).is_none());
+        assert!(hierarchy_without_effect([64, 64, 64], 0).is_none());
     }
 }

@@ -259,6 +259,19 @@ impl RunDescription {
         }
     }
 
+    /// Why the run's occupancy hierarchy groups nothing on a volume of `dims`
+    /// (`occupancy::hierarchy_without_effect`); None without one, or when it can group.
+    pub fn hierarchy_without_effect(&self, dims: [usize; 3]) -> Option<String> {
+        match self.leaping() {
+            Leaping::Occupancy {
+                subcube,
+                hierarchy: true,
+                ..
+            } => crate::occupancy::hierarchy_without_effect(dims, subcube),
+            _ => None,
+        }
+    }
+
     /// Why this run does not leap although its configuration may ask it to (the float
     /// reference, but with homogeneous leap values), None when it leaps as configured: then
     /// the leaping structure's fields are without effect
@@ -831,6 +844,10 @@ pub struct RunReport {
     pub error_bound: Option<crate::bound::BoundCheck>,
     #[serde(skip)]
     pub frame: Frame,
+    /// What the run's configuration asks that this volume leaves without effect (a hierarchy
+    /// that groups nothing), for `sim` and `render` to say.
+    #[serde(skip)]
+    pub notes: Vec<String>,
 }
 
 /// Loads the run's dataset from `data_dir` and runs it.
@@ -1108,6 +1125,13 @@ pub fn execute(run: &RunDescription, prepared: &Prepared, probes: Probes) -> Res
         error_bound: None,
         measurements: m,
         frame,
+        notes: run
+            .hierarchy_without_effect(prepared.volume.dims)
+            .map(|why| {
+                format!("the hierarchy (occupancy.hierarchy) is without effect here, as {why}")
+            })
+            .into_iter()
+            .collect(),
     })
 }
 

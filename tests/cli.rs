@@ -1852,6 +1852,40 @@ fn only_the_published_step_time_is_called_published() {
     assert!(!five.contains("published 5"), "{five}");
 }
 
+/// `sim` and `render` say when the hierarchy groups nothing (a volume that is one sub-cube along
+/// every axis): it ran silently, with the result of the map alone.
+#[test]
+fn a_hierarchy_that_groups_nothing_is_said_to_be_without_effect() {
+    let dir = scratch("hier");
+    let png = dir.join("h.png");
+    let note = "note: the hierarchy (occupancy.hierarchy) is without effect here, as the 2×2×2 \
+                group of 32³ sub-cubes is larger than the volume [32, 32, 32]";
+    for command in [&["sim"][..], &["render", "--model", "fixed"]] {
+        let run = |subcube: &str| {
+            let mut args = command.to_vec();
+            args.extend([
+                "--dataset",
+                "phantom:sphere:32",
+                "--size",
+                "8x8",
+                "--subcube",
+                subcube,
+                "--hierarchy",
+                "-o",
+                png.to_str().unwrap(),
+            ]);
+            String::from_utf8_lossy(&succeeds(&args).stdout).into_owned()
+        };
+        let whole = run("32");
+        assert!(whole.contains(note), "{command:?}: {whole}");
+        let grouped = run("16");
+        assert!(
+            !grouped.contains("without effect"),
+            "{command:?}: {grouped}"
+        );
+    }
+}
+
 /// `precision` writes its tables, JSON and charts together or not at all: a folder where one of
 /// them goes left the others (and the chart's temporaries) behind, a failed run that looked
 /// finished (found by probing).

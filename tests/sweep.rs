@@ -1422,6 +1422,44 @@ fn repeated_values_empty_exclusions_and_left_out_runs_are_named() {
     );
 }
 
+/// A hierarchy that groups nothing (the volume is one sub-cube along every axis) is left out
+/// with its reason, as a sub-cube larger than the volume is; it ran silently, giving the
+/// result of the map alone.
+#[test]
+fn a_hierarchy_that_groups_nothing_is_left_out_with_its_reason() {
+    let text = "name = \"h\"\ndatasets = [\"phantom:sphere:32\", \"phantom:sphere:64\"]\n\
+                tf = [\"zero\"]\nmodes = [\"ert+leap32\", \"ert+leap32+hier\", \"ert+leap64\"]\n\
+                models = [\"step\"]\n[frames]\norbit = 1\nsize = \"4x4\"\n";
+    let e = expand(text, "h.toml", None).unwrap();
+    let ran: Vec<(String, String)> = e
+        .runs
+        .iter()
+        .map(|r| (r.run.dataset.clone(), r.mode.name()))
+        .collect();
+    assert_eq!(
+        ran,
+        [
+            ("phantom:sphere:32", "ert+leap32"),
+            ("phantom:sphere:64", "ert+leap32"),
+            ("phantom:sphere:64", "ert+leap32+hier"),
+            ("phantom:sphere:64", "ert+leap64"),
+        ]
+        .map(|(d, m)| (d.to_string(), m.to_string()))
+    );
+    let hier = e
+        .skipped
+        .iter()
+        .find(|s| s.mode == "ert+leap32+hier")
+        .expect("listed as left out");
+    assert_eq!(hier.dataset, "phantom:sphere:32");
+    assert!(
+        hier.reason
+            .starts_with("the 2×2×2 group of 32³ sub-cubes is larger than the volume [32, 32, 32]"),
+        "{}",
+        hier.reason
+    );
+}
+
 /// A cycle run without ERT, leaping, bricks, blocking or iso takes the timing of the same run
 /// with another transfer function instead of simulating: its line must be the one simulating
 /// writes. The same runs swept one transfer function at a time (nothing to reuse) must give

@@ -603,6 +603,11 @@ fn reference_text(c: &vizsim::compare::Comparison) -> String {
     }
 }
 
+/// What the run's configuration asks that its volume leaves without effect, as notes.
+pub fn note_lines(report: &vizsim::run::RunReport) -> Vec<String> {
+    report.notes.iter().map(|n| format!("note: {n}")).collect()
+}
+
 /// The lines `render` and `sim` print under their summary for the features a run has on (ray
 /// start and end, iso-surface mode, a leaping structure's memory, blocking), in that order.
 pub fn feature_lines(config: &HardwareConfig, m: &vizsim::run::Measurements) -> Vec<String> {

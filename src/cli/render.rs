@@ -125,7 +125,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
         report.samples_per_second / 1e6,
         args.output.display()
     )?;
-        for line in super::feature_lines(&report.run.hardware, &report.measurements) {
+        for line in super::feature_lines(&report.run.hardware, &report.measurements)
+            .into_iter()
+            .chain(super::note_lines(&report))
+        {
             writeln!(said, "{line}")?;
         }
         for line in super::reference_line(&report).into_iter().chain(bound_line) {

@@ -1310,6 +1310,25 @@ impl Plan {
                                         });
                                         continue;
                                     }
+                                    // A hierarchy that groups nothing runs as the map alone:
+                                    // left out as a sub-cube larger than the volume is.
+                                    if let Some(why) = mode
+                                        .hierarchy
+                                        .then(|| {
+                                            crate::occupancy::hierarchy_without_effect(
+                                                dims,
+                                                mode.subcube,
+                                            )
+                                        })
+                                        .flatten()
+                                    {
+                                        skip(Skipped {
+                                            dataset: name.clone(),
+                                            mode: mode.name(),
+                                            reason: why,
+                                        });
+                                        continue;
+                                    }
                                     let bits = crate::occupancy::map_bits(
                                         dims,
                                         mode.subcube,
