@@ -446,7 +446,8 @@ pub fn candidate_modes(dims: [usize; 3], structures: &[Structure]) -> Vec<Mode> 
         for n in [2usize, 4, 8, 16, 32, 64] {
             if n <= largest {
                 names.push(format!("ert+leap{n}"));
-                if n <= 32 {
+                // Not where the hierarchy groups nothing: it would rank a twin of the map.
+                if n <= 32 && crate::occupancy::hierarchy_without_effect(dims, n).is_none() {
                     names.push(format!("ert+leap{n}+hier"));
                 }
             }

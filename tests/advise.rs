@@ -61,8 +61,9 @@ fn advice_is_deterministic() {
     let first = advise::advise(&run, &volume, &opts).unwrap();
     let second = advise::advise(&run, &volume, &opts).unwrap();
     assert_eq!(strip(&first), strip(&second));
-    // Map sizes 2..32 (with and without the hierarchy), ERT, two distance volumes.
-    assert_eq!(first.ranking.len(), 1 + 5 + 5 + 2);
+    // ERT, map sizes 2..32, the hierarchy with 2..16 (32³ groups nothing on this 32³
+    // volume), two distance volumes.
+    assert_eq!(first.ranking.len(), 1 + 5 + 4 + 2);
     // Ranked by predicted frame rate, fastest first.
     for pair in first.ranking.windows(2) {
         assert!(pair[0].predicted_fps >= pair[1].predicted_fps);
@@ -790,4 +791,24 @@ fn sweep_into(experiment: &std::path::Path, out: &std::path::Path) {
         "{}",
         String::from_utf8_lossy(&sweep.stderr)
     );
+}
+
+/// The hierarchy is a candidate only where it can group sub-cubes: on a 32³ volume 32³ sub-cubes
+/// make one group of one sub-cube, a twin of the map alone (the advisor ranked it as its own
+/// configuration); 16³ sub-cubes group.
+#[test]
+fn the_hierarchy_is_offered_only_where_it_groups_sub_cubes() {
+    let names: Vec<String> = advise::candidate_modes([32, 32, 32], &[Structure::Map])
+        .iter()
+        .map(|m| m.name())
+        .collect();
+    assert!(names.contains(&"ert+leap32".to_string()), "{names:?}");
+    assert!(!names.contains(&"ert+leap32+hier".to_string()), "{names:?}");
+    assert!(names.contains(&"ert+leap16+hier".to_string()), "{names:?}");
+    // A volume longer than the sub-cube along one axis groups: the 32³ hierarchy stays.
+    let long: Vec<String> = advise::candidate_modes([32, 32, 64], &[Structure::Map])
+        .iter()
+        .map(|m| m.name())
+        .collect();
+    assert!(long.contains(&"ert+leap32+hier".to_string()), "{long:?}");
 }
