@@ -292,6 +292,12 @@ fn target(path: &Path) -> Result<Target> {
 /// (lossless, so two images compare bit for bit), and a `.jpg` holding PNG bytes misleads every
 /// viewer. A name without an extension (a device, a FIFO) is taken.
 pub fn check_png_name(option: &str, path: &Path) -> Result<()> {
+    if is_standard_output(path) {
+        return Err(Error::Invalid(format!(
+            "{option} -: images are not written to standard output (only `--json -` is); \
+             name a file .png"
+        )));
+    }
     match path.extension() {
         Some(ext) if !ext.eq_ignore_ascii_case("png") => Err(Error::Invalid(format!(
             "{option} {}: images are written as PNG (lossless, so they compare bit for bit); \
@@ -342,6 +348,9 @@ pub fn check_distinct(inputs: &[&Path], outputs: &[(&str, &Path)]) -> Result<()>
         .collect();
     let mut written: Vec<(&str, std::path::PathBuf)> = Vec::new();
     for &(option, path) in outputs {
+        if is_standard_output(path) {
+            continue;
+        }
         let Some(real) = resolve(path) else { continue };
         if let Some((input, _)) = read.iter().find(|(_, r)| *r == real) {
             return Err(Error::Invalid(format!(
@@ -362,12 +371,21 @@ pub fn check_distinct(inputs: &[&Path], outputs: &[(&str, &Path)]) -> Result<()>
     Ok(())
 }
 
+/// `-` as the path of a JSON output (`--json -`): standard output, as for most command-line
+/// tools. The command's text then goes to standard error, so that the JSON can be piped.
+pub fn is_standard_output(path: &Path) -> bool {
+    path.as_os_str() == "-"
+}
+
 /// Fails early, before a long computation, when `path` cannot be written: a folder, or a
 /// folder that cannot be created or written into (tried with the temporary the write will
 /// use). Devices and FIFOs are not opened here (opening a FIFO waits for its reader). Folders
 /// the check makes are removed again: the write makes them when it comes, and a command that
 /// fails before it leaves no empty folder behind.
 pub fn check_writable(path: &Path) -> Result<()> {
+    if is_standard_output(path) {
+        return Ok(());
+    }
     if let Target::Atomic(real) = target(path)? {
         let parent = match real.parent() {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
@@ -478,8 +496,16 @@ pub fn write_atomically(
     Ok(())
 }
 
-/// Writes a value as pretty JSON, atomically.
+/// Writes a value as pretty JSON, atomically; to standard output for the path `-`.
 pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<()> {
+    if is_standard_output(path) {
+        let mut out = std::io::stdout().lock();
+        return serde_json::to_writer_pretty(&mut out, value)
+            .map_err(std::io::Error::other)
+            .and_then(|()| out.write_all(b"\n"))
+            .and_then(|()| out.flush())
+            .map_err(|e| Error::io("standard output", e));
+    }
     write_atomically(path, |w| {
         serde_json::to_writer_pretty(&mut *w, value).map_err(std::io::Error::other)?;
         w.write_all(b"\n")

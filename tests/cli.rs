@@ -2580,3 +2580,55 @@ fn a_clip_region_outside_the_volume_says_nothing_is_sampled() {
     assert!(half.contains("ray start/end:"), "{half}");
     assert!(!half.contains("every position is cut"), "{half}");
 }
+
+/// `--json -` writes the JSON to standard output, as for most command-line tools, and the
+/// command's text to standard error, so that the JSON can be piped (it wrote a file named `-`).
+#[test]
+fn json_to_standard_output_with_the_text_on_standard_error() {
+    let dir = scratch("json-stdout");
+    let png = dir.join("frame.png");
+    let png_ = png.to_str().unwrap();
+    let frame = ["--dataset", "phantom:sphere:32", "--size", "16x16"];
+    let runs: [(Vec<&str>, &str, &str); 3] = [
+        (
+            [&["sim"][..], &frame, &["--json", "-"]].concat(),
+            "\"cycles\"",
+            "cycles =",
+        ),
+        (
+            [&["render"][..], &frame, &["-o", png_, "--json", "-"]].concat(),
+            "\"samples\"",
+            "rays,",
+        ),
+        (
+            vec!["compare", png_, png_, "--json", "-"],
+            "\"max_abs_error\"",
+            "max |error|",
+        ),
+    ];
+    for (args, json_field, text) in runs {
+        let out = succeeds(&args);
+        let stdout = String::from_utf8(out.stdout).unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let parsed: serde_json::Value = serde_json::from_str(&stdout)
+            .unwrap_or_else(|e| panic!("{args:?}: standard output is not JSON ({e}): {stdout}"));
+        assert!(parsed.is_object(), "{args:?}: {stdout}");
+        assert!(stdout.contains(json_field), "{args:?}: {stdout}");
+        assert!(
+            stderr.contains(text),
+            "{args:?}: the text is not on standard error: {stderr}"
+        );
+        assert!(
+            stderr.contains("hardware:") || args[0] == "compare",
+            "{stderr}"
+        );
+    }
+    let dash = Path::new(env!("CARGO_MANIFEST_DIR")).join("-");
+    assert!(!dash.exists(), "a file named - was written");
+    // Images are not written to standard output.
+    assert_fails(
+        &[&["render"][..], &frame, &["-o", "-"]].concat(),
+        &["--output -", "not written to standard output"],
+        &dash,
+    );
+}

@@ -11,7 +11,7 @@ pub struct CompareArgs {
     a: PathBuf,
     /// Second image, the same size as A (the comparison is symmetric).
     b: PathBuf,
-    /// Write the comparison as JSON.
+    /// Write the comparison as JSON (`-`: to standard output, the text then to standard error).
     #[arg(long)]
     json: Option<PathBuf>,
     /// Write a difference image as PNG, named .png (|A - B| x 16 in R, G, B).
@@ -60,8 +60,8 @@ pub fn run(args: CompareArgs) -> Result<()> {
         Ok(())
     })?;
     // Printed after the outputs are in place (a failed print must not leave their temporaries).
-    println!(
-        "max |error| R {} G {} B {} A {}, mean (R, G, B, A) {:.4}, PSNR (R, G, B) {}, {} pixels differ by more than 1 LSB{}",
+    super::say(json, &format!(
+        "max |error| R {} G {} B {} A {}, mean (R, G, B, A) {:.4}, PSNR (R, G, B) {}, {} pixels differ by more than 1 LSB{}\n",
         result.max_abs_error[0],
         result.max_abs_error[1],
         result.max_abs_error[2],
@@ -70,6 +70,6 @@ pub fn run(args: CompareArgs) -> Result<()> {
         result.psnr_text(2),
         result.pixels_over_1_lsb,
         if result.identical { " (identical)" } else { "" }
-    );
+    ));
     Ok(())
 }

@@ -553,6 +553,17 @@ pub fn leaping_text(leaping: &vizsim::functional::renderer::Leaping) -> String {
     }
 }
 
+/// Prints a command's text: to standard output, or to standard error when standard output
+/// carries the command's JSON (`--json -`), so that the JSON can be piped.
+pub fn say(json: Option<&std::path::Path>, text: &str) {
+    use std::io::Write;
+    if json.is_some_and(vizsim::output::is_standard_output) {
+        let _ = write!(std::io::stderr(), "{text}");
+    } else {
+        print!("{text}");
+    }
+}
+
 /// `--check-bound` (render, sim): refused before anything runs when the run is outside the
 /// predicted bound.
 pub fn refuse_unbounded(desc: &vizsim::run::RunDescription) -> Result<()> {

@@ -15,7 +15,8 @@ pub struct RenderArgs {
     /// Output PNG.
     #[arg(short, long)]
     output: PathBuf,
-    /// Also write the run and its statistics as JSON.
+    /// Also write the run and its statistics as JSON (`-`: to standard output, the text then
+    /// to standard error).
     #[arg(long)]
     json: Option<PathBuf>,
     /// Also write one CSV row per ray: samples, leaps, where it entered and left, ERT, the
@@ -77,10 +78,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
     {
         vizsim::output::check_writable(path)?;
     }
-    println!(
-        "{}",
-        args.hardware
-            .resolved_line(&desc.hardware, desc.config_use())
+    let json = args.json.as_deref();
+    super::say(
+        json,
+        &format!(
+            "{}\n",
+            args.hardware
+                .resolved_line(&desc.hardware, desc.config_use())
+        ),
     );
     // The outputs appear together or not at all; what the run says is printed after them
     // (a failed print must not leave the outputs' temporaries behind).
@@ -139,6 +144,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
         Ok(said)
     })?;
-    print!("{said}");
+    super::say(json, &said);
     Ok(())
 }

@@ -42,7 +42,8 @@ pub struct SimArgs {
     /// Output PNG.
     #[arg(short, long)]
     output: Option<PathBuf>,
-    /// The run and its statistics as JSON.
+    /// The run and its statistics as JSON (`-`: to standard output, the text then to
+    /// standard error).
     #[arg(long)]
     json: Option<PathBuf>,
     /// Also check invariant (c): render the float reference and check every pixel of the
@@ -107,7 +108,14 @@ pub fn run(args: SimArgs) -> Result<()> {
         vizsim::output::check_writable(path)?;
     }
     let config = &desc.hardware;
-    println!("{}", args.hardware.resolved_line(config, desc.config_use()));
+    let json = args.json.as_deref();
+    super::say(
+        json,
+        &format!(
+            "{}\n",
+            args.hardware.resolved_line(config, desc.config_use())
+        ),
+    );
     // The ideal memory reads no SDRAM or memory field: a changed one would go unnoticed.
     if desc.memory != Memory::Sdram {
         let memory_fields: Vec<String> = config
@@ -116,9 +124,12 @@ pub fn run(args: SimArgs) -> Result<()> {
             .filter(|d| d.starts_with("sdram.") || d.starts_with("memory."))
             .collect();
         if !memory_fields.is_empty() {
-            println!(
-                "note: without effect with --memory ideal: {}",
-                memory_fields.join(", ")
+            super::say(
+                json,
+                &format!(
+                    "note: without effect with --memory ideal: {}\n",
+                    memory_fields.join(", ")
+                ),
             );
         }
     }
@@ -281,7 +292,7 @@ pub fn run(args: SimArgs) -> Result<()> {
         }
         Ok((said, warned))
     })?;
-    print!("{said}");
+    super::say(json, &said);
     {
         use std::io::Write;
         // A standard error that cannot be written is no reason to fail a finished run.
