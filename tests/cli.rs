@@ -2631,4 +2631,11 @@ fn json_to_standard_output_with_the_text_on_standard_error() {
         &["--output -", "not written to standard output"],
         &dash,
     );
+    for option in ["--vcd", "--command-trace"] {
+        assert_fails(
+            &[&["sim"][..], &frame, &[option, "-"]].concat(),
+            &[option, "only `--json -` writes to standard output"],
+            &dash,
+        );
+    }
 }
