@@ -762,6 +762,9 @@ pub struct BoundCheck {
     /// Means over the pixels and the colour channels R, G, B, in 8-bit levels.
     pub mean_error: f64,
     pub mean_bound: f64,
+    /// Pixel channels whose bound is full scale (255 levels): there any error is within it,
+    /// so the check says nothing about them.
+    pub full_scale_channels: u64,
 }
 
 impl BoundCheck {
@@ -784,16 +787,26 @@ impl BoundCheck {
                 v.bound
             ),
         };
+        let vacuous = match self.full_scale_channels {
+            0 => String::new(),
+            n => format!(
+                " (at {n} of the {} pixel channels the bound is full scale, 255 levels, and \
+                 any error passes)",
+                4 * self.pixels
+            ),
+        };
         format!(
-            "fixed vs float: max error (R, G, B) {} {} {}, mean (R, G, B) {:.3}; predicted bound \
-             max {} {} {}, mean (R, G, B) {:.3} levels; {verdict}",
+            "fixed vs float: max error (R, G, B, A) {} {} {} {}, mean (R, G, B) {:.3}; predicted \
+             bound max {} {} {} {}, mean (R, G, B) {:.3} levels; {verdict}{vacuous}",
             self.max_error[0],
             self.max_error[1],
             self.max_error[2],
+            self.max_error[3],
             self.mean_error,
             self.max_bound[0],
             self.max_bound[1],
             self.max_bound[2],
+            self.max_bound[3],
             self.mean_bound
         )
     }
@@ -817,6 +830,7 @@ pub fn check(fixed: &Frame, float: &Frame, bound: &BoundFrame) -> Result<BoundCh
         max_bound: [0; 4],
         mean_error: 0.0,
         mean_bound: 0.0,
+        full_scale_channels: 0,
     };
     let (mut error_sum, mut bound_sum) = (0u64, 0u64);
     for (i, ((x, f), b)) in fixed
@@ -830,6 +844,7 @@ pub fn check(fixed: &Frame, float: &Frame, bound: &BoundFrame) -> Result<BoundCh
             let error = x[c].abs_diff(f[c]);
             result.max_error[c] = result.max_error[c].max(error);
             result.max_bound[c] = result.max_bound[c].max(b[c]);
+            result.full_scale_channels += u64::from(b[c] == u8::MAX);
             if c < 3 {
                 error_sum += error as u64;
                 bound_sum += b[c] as u64;
@@ -962,5 +977,42 @@ mod tests {
                 assert_eq!(hi[c], slice.fold(f64::NEG_INFINITY, f64::max));
             }
         }
+    }
+
+    /// The check counts the channels whose bound is full scale (any error passes there) and says
+    /// so, shows alpha's maximum too (it checks alpha), and finds a violation in any channel.
+    #[test]
+    fn check_counts_full_scale_bounds_and_reports_alpha() {
+        let frame = |pixels: Vec<[u8; 4]>| Frame {
+            width: 2,
+            height: 1,
+            pixels,
+            rays: Vec::new(),
+        };
+        let fixed = frame(vec![[10, 10, 10, 200], [0, 0, 0, 0]]);
+        let float = frame(vec![[0, 10, 10, 197], [0, 0, 0, 0]]);
+        let bound = BoundFrame {
+            width: 2,
+            height: 1,
+            levels: vec![[255, 3, 3, 3], [1, 1, 1, 255]],
+        };
+        let c = check(&fixed, &float, &bound).unwrap();
+        assert!(c.holds());
+        assert_eq!(c.full_scale_channels, 2);
+        assert_eq!(c.max_error, [10, 0, 0, 3]);
+        let text = c.describe();
+        assert!(text.contains("max error (R, G, B, A) 10 0 0 3"), "{text}");
+        assert!(
+            text.contains("at 2 of the 8 pixel channels the bound is full scale"),
+            "{text}"
+        );
+        let tight = BoundFrame {
+            levels: vec![[10, 3, 3, 2], [1, 1, 1, 1]],
+            ..bound
+        };
+        let c = check(&fixed, &float, &tight).unwrap();
+        assert_eq!((c.violations, c.full_scale_channels), (1, 0));
+        assert_eq!(c.first_violation.unwrap().channel, 3);
+        assert!(!c.describe().contains("full scale"), "{}", c.describe());
     }
 }

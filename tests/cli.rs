@@ -2539,6 +2539,12 @@ fn fixed_and_cycle_runs_are_compared_with_the_float_reference() {
                 && stdout.contains(" levels, mean (R, G, B, A) "),
             "{name}: {stdout}"
         );
+        // The hint at --check-bound only where it takes the run: it refuses lossy leap values.
+        assert_eq!(
+            stdout.contains("(--check-bound: each pixel"),
+            name != "lossy",
+            "{name}: {stdout}"
+        );
         let compared = path(&format!("{name}-compare.json"));
         let out = succeeds(&["compare", &png, &path("float.png"), "--json", &compared]);
         let said = String::from_utf8_lossy(&out.stdout);

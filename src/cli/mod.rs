@@ -590,18 +590,19 @@ pub fn reference_line(report: &vizsim::run::RunReport) -> Option<String> {
         .float_reference
         .as_ref()
         .filter(|_| report.error_bound.is_none())?;
-    Some(reference_text(c))
+    let bounded = vizsim::bound::unsupported(&report.run.hardware).is_none();
+    Some(reference_text(c, bounded))
 }
 
-fn reference_text(c: &vizsim::compare::Comparison) -> String {
+/// `bounded`: whether `--check-bound` takes this run (it refuses some, e.g. lossy leap values).
+fn reference_text(c: &vizsim::compare::Comparison, bounded: bool) -> String {
     let e = c.max_abs_error;
     if c.identical {
         "fixed vs float reference: identical images".to_string()
     } else {
         format!(
             "fixed vs float reference: max error (R, G, B, A) {} {} {} {} levels, mean (R, G, B, A) {:.3}, \
-             PSNR {}, {} of {} pixels more than 1 level off (--check-bound: each pixel \
-             against the bound its bit widths predict)",
+             PSNR {}, {} of {} pixels more than 1 level off{}",
             e[0],
             e[1],
             e[2],
@@ -609,7 +610,12 @@ fn reference_text(c: &vizsim::compare::Comparison) -> String {
             c.mean_abs_error,
             c.psnr_text(1),
             c.pixels_over_1_lsb,
-            c.width as u64 * c.height as u64
+            c.width as u64 * c.height as u64,
+            if bounded {
+                " (--check-bound: each pixel against the bound its bit widths predict)"
+            } else {
+                ""
+            }
         )
     }
 }
@@ -839,12 +845,21 @@ mod tests {
 
     #[test]
     fn a_frame_differing_in_alpha_only_says_why_its_psnr_is_infinite() {
-        let line = super::reference_text(&compare(&[[1, 2, 3, 4]], &[[1, 2, 3, 9]], 1, 1).unwrap());
+        let line = super::reference_text(
+            &compare(&[[1, 2, 3, 4]], &[[1, 2, 3, 9]], 1, 1).unwrap(),
+            true,
+        );
         assert!(line.contains("A) 0 0 0 5 levels"), "{line}");
         assert!(line.contains("PSNR inf dB (R, G, B identical)"), "{line}");
-        let line = super::reference_text(&compare(&[[1, 2, 3, 4]], &[[1, 2, 9, 4]], 1, 1).unwrap());
+        let line = super::reference_text(
+            &compare(&[[1, 2, 3, 4]], &[[1, 2, 9, 4]], 1, 1).unwrap(),
+            true,
+        );
         assert!(line.contains("PSNR 37.3 dB"), "{line}");
-        let same = super::reference_text(&compare(&[[1, 2, 3, 4]], &[[1, 2, 3, 4]], 1, 1).unwrap());
+        let same = super::reference_text(
+            &compare(&[[1, 2, 3, 4]], &[[1, 2, 3, 4]], 1, 1).unwrap(),
+            true,
+        );
         assert_eq!(same, "fixed vs float reference: identical images");
     }
 }
