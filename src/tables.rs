@@ -840,13 +840,62 @@ impl Table {
             .collect()
     }
 
+    /// Whether the Markdown names each row's fastest column: frame-rate tables with two
+    /// columns or more (which mode or value wins where, as an architect asks first).
+    fn ranks_columns(&self) -> bool {
+        self.metric == Metric::Fps && self.columns.len() >= 2
+    }
+
+    /// A row's fastest column and its lead over the next ("8³+h, 1.21× 8³"); columns that tie
+    /// at the top are named together. A cell's marks (the SRAM raised) stay on its label.
+    fn fastest_text(&self, row: usize) -> String {
+        let values = &self.rows[row].1;
+        let label = |ci: usize| {
+            let mark = if self.raised_sram.contains(&(row, ci)) {
+                "*"
+            } else {
+                ""
+            };
+            format!("{}{mark}", self.header()[self.row_fields.len() + ci])
+        };
+        let mut ranked: Vec<(usize, f64)> = values
+            .iter()
+            .enumerate()
+            .filter_map(|(ci, v)| Some((ci, (*v)?)))
+            .collect();
+        // Highest first; equal rates in column order.
+        ranked.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+        let Some(&(_, best)) = ranked.first() else {
+            return "–".into();
+        };
+        let top: Vec<String> = ranked
+            .iter()
+            .take_while(|(_, v)| *v == best)
+            .map(|&(ci, _)| label(ci))
+            .collect();
+        let tied = top.len() > 1;
+        let mut text = top.join(" = ");
+        if tied {
+            text += " (tied)";
+        }
+        if let Some(&(ci, next)) = ranked.get(top.len()).filter(|_| !tied) {
+            if next > 0.0 {
+                text += &format!(", {:.2}× {}", best / next, label(ci));
+            }
+        }
+        text
+    }
+
     pub fn markdown(&self) -> String {
         let mut s = format!("### {}\n\n", self.title);
         let header = self.header();
         let escaped: Vec<String> = header.iter().map(|h| markdown_cell(h)).collect();
         s += &format!("| {} |\n", escaped.join(" | "));
+        let ranked = self.ranks_columns();
+        let fastest_header = if ranked { " fastest |" } else { "" };
+        s.insert_str(s.len() - 1, fastest_header);
         s += &format!(
-            "|{}|\n",
+            "|{}|{}\n",
             header
                 .iter()
                 .enumerate()
@@ -856,7 +905,8 @@ impl Table {
                     "---:"
                 })
                 .collect::<Vec<_>>()
-                .join("|")
+                .join("|"),
+            if ranked { "---|" } else { "" }
         );
         let count = self.metric.is_count();
         // A count's format is the table's (one style, whole numbers); another figure's is its
@@ -912,7 +962,21 @@ impl Table {
                 })
                 .collect();
             let labels: Vec<String> = labels.iter().map(|l| markdown_cell(l)).collect();
-            s += &format!("| {} | {} |\n", labels.join(" | "), cells.join(" | "));
+            let fastest = if ranked {
+                format!(" {} |", markdown_cell(&self.fastest_text(ri)))
+            } else {
+                String::new()
+            };
+            s += &format!(
+                "| {} | {} |{fastest}\n",
+                labels.join(" | "),
+                cells.join(" | ")
+            );
+        }
+        if ranked {
+            s +=
+                "\nfastest: the column with the highest frame rate in the row, and how many times \
+                  the next one's rate it is.\n";
         }
         if !self.raised_sram.is_empty() {
             s += "\n\\* the occupancy map does not fit the default SRAM (occupancy.sram_bits); run with the SRAM raised.\n";
@@ -1237,6 +1301,41 @@ mod tests {
         assert_eq!(table.len(), 3, "{md}");
         assert!(table.iter().all(|l| cells(l) == cells(table[0])), "{md}");
         assert!(md.contains("own \\| tf.toml"), "{md}");
+    }
+
+    /// A frame-rate table names each row's fastest column and its lead over the next, or the
+    /// columns that tie; other metrics' tables and the CSV have no such column.
+    #[test]
+    fn a_frame_rate_table_names_each_rows_fastest_column() {
+        let with_fps = |mode: &str, fps: f64| {
+            let mut l = line(mode, 0, 1000, false);
+            l["fps"] = fps.into();
+            l
+        };
+        let rows = ["dataset".to_string(), "tf".to_string()];
+        let markdown = |rates: [f64; 3]| {
+            let lines: Vec<serde_json::Value> = ["none", "ert", "ert+leap8"]
+                .iter()
+                .zip(rates)
+                .map(|(m, r)| with_fps(m, r))
+                .collect();
+            let refs: Vec<&serde_json::Value> = lines.iter().collect();
+            let table = build(&refs, Metric::Fps, &rows, "mode", "t").unwrap();
+            assert!(!table.csv().contains("fastest"), "{}", table.csv());
+            let cycles = build(&refs, Metric::Cycles, &rows, "mode", "t").unwrap();
+            assert!(!cycles.markdown().contains("fastest"));
+            table.markdown()
+        };
+        let md = markdown([80.0, 100.0, 125.0]);
+        assert!(
+            md.contains("| dataset | tf | none | ERT | 8³ | fastest |\n"),
+            "{md}"
+        );
+        assert!(md.contains("| 8³, 1.25× ERT |"), "{md}");
+        let md = markdown([80.0, 100.0, 100.0]);
+        assert!(md.contains("| ERT = 8³ (tied) |"), "{md}");
+        let md = markdown([130.0, 100.0, 100.0]);
+        assert!(md.contains("| none, 1.30× ERT |"), "{md}");
     }
 
     /// A count's table is in one style: whole numbers in every column, every digit kept
