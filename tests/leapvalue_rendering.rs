@@ -549,7 +549,7 @@ fn spacing_beyond_the_guards_is_an_error_and_a_single_region_is_fine() {
         .err()
         .expect("spacing 2 with guards for 1 must fail")
         .to_string();
-    assert!(err.contains("leap_values.spacing"), "{err}");
+    assert!(err.contains("leap_values.max_spacing"), "{err}");
 
     let uniform = common::uniform([24, 24, 24], 0);
     let tf = common::tf(&[(0.0, [0.0; 4]), (10.0, [1.0, 1.0, 1.0, 0.5])]);

@@ -436,7 +436,7 @@ fn leap_values_saturate_to_the_field() {
 fn spacing_beyond_the_guard_distance_is_an_error() {
     let v = volume([8, 8, 8], |_, _, _| 1);
     let e = preprocess(&v, &params(0, 1, 1.0, 2.0)).unwrap_err();
-    assert_eq!(config_field(e), "leap_values.spacing");
+    assert_eq!(config_field(e), "leap_values.max_spacing");
     let s = segment(
         &v,
         SegmentationParams {

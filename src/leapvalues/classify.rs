@@ -55,7 +55,7 @@ impl GuardDistance {
         if spacing > self.max_spacing {
             return Err(Error::config(
                 SOURCE,
-                "leap_values.spacing",
+                "leap_values.max_spacing",
                 format!(
                     "sample spacing {spacing} is larger than the guard distance allows: the guards \
                      ({} voxels) were derived for spacings up to {}; classify again with \
