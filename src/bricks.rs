@@ -193,6 +193,23 @@ impl FixedRange {
         self.bricks.as_ref().map(|(m, _)| m)
     }
 
+    /// Replaces the brick flags by `map` (built elsewhere: a dynamic sequence's, from the
+    /// update engine's table, conservative for the volume). An error without bricks or for a
+    /// map of another grid.
+    pub fn set_brick_map(&mut self, map: OccupancyMap) -> Result<()> {
+        match &mut self.bricks {
+            Some((old, _)) if old.dims == map.dims && old.cube_log2 == map.cube_log2 => {
+                *old = map;
+                Ok(())
+            }
+            _ => Err(Error::Invalid(format!(
+                "the run has no bricks of edge {} over {:?}",
+                map.subcube_size(),
+                map.dims
+            ))),
+        }
+    }
+
     /// Clamps a fixed ray (from `setup_ray`) to its start and end: first the scene's sample
     /// range (computed from the float camera ray `ray` of pixel (px, py)), then the active
     /// bricks.

@@ -136,11 +136,11 @@ pub fn table_sram_note(
 }
 
 /// Who asks the update model: `vizsim update` measures the map alone (its bits, at the
-/// sub-cube size); a sequence also renders every step with it.
+/// sub-cube size); a sequence also renders every step with it, its map kept as `map` says.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum UpdateUse {
     Measure,
-    Sequence,
+    Sequence { map: MapMode },
 }
 
 /// Refuses a configuration the update model does not model (docs/dynamic.md, "Not modelled
@@ -166,11 +166,34 @@ pub fn check_modelled(hw: &HardwareConfig, used: UpdateUse) -> Result<()> {
         );
     }
     if hw.bricks.size > 0 {
-        return refuse(
-            format!("bricks.size = {}", hw.bricks.size),
-            "the brick flags that start and end each ray are not kept up to date as the volume \
-             changes",
-        );
+        // A sequence rebuilds the brick flags from the map's min/max table (`run_sequence`).
+        match used {
+            UpdateUse::Measure => {
+                return refuse(
+                    format!("bricks.size = {}", hw.bricks.size),
+                    "update measures the map; the brick flags that start and end each ray are \
+                     rebuilt from its table in `vizsim sequence`",
+                )
+            }
+            UpdateUse::Sequence { map: MapMode::None } => {
+                return refuse(
+                    format!("bricks.size = {} with --map none", hw.bricks.size),
+                    "the brick flags are rebuilt from the map's min/max table, which the chip \
+                     keeps only with a map",
+                )
+            }
+            UpdateUse::Sequence { .. } if hw.bricks.size < hw.occupancy.subcube => {
+                return refuse(
+                    format!(
+                        "bricks.size = {} below occupancy.subcube = {}",
+                        hw.bricks.size, hw.occupancy.subcube
+                    ),
+                    "the brick flags are rebuilt from the map's min/max table, one range per \
+                     sub-cube: a brick must hold whole sub-cubes",
+                )
+            }
+            UpdateUse::Sequence { .. } => {}
+        }
     }
     if hw.blocking.enabled {
         return refuse(
@@ -700,6 +723,15 @@ pub struct StepView<'a> {
     pub table_on_chip_bits: Option<u64>,
 }
 
+/// The first cell `exact` marks occupied that `ours` leaves empty (same grid): where `ours`
+/// is not conservative.
+fn first_uncovered(ours: &OccupancyMap, exact: &OccupancyMap) -> Option<[usize; 3]> {
+    let d = exact.dims;
+    (0..d[2])
+        .flat_map(|z| (0..d[1]).flat_map(move |y| (0..d[0]).map(move |x| [x, y, z])))
+        .find(|&c| exact.occupied(c) && !ours.occupied(c))
+}
+
 /// Runs the frame loop of `source` with `run` (cycle model; its dataset is ignored; its
 /// `occupancy.subcube` is the map's sub-cube size): per step the update engine writes what
 /// changed, the map follows as `options.map` says, and the frame is rendered through
@@ -720,7 +752,7 @@ pub fn run_sequence(
         )));
     }
     let hw = &run.hardware;
-    check_modelled(hw, UpdateUse::Sequence)?;
+    check_modelled(hw, UpdateUse::Sequence { map: options.map })?;
     let leaping_run = || {
         let mut r = run.clone();
         if options.map == MapMode::None {
@@ -772,7 +804,7 @@ pub fn run_sequence(
         }
         let engine = engine.as_mut().expect("created above");
         let update = engine.update(&step.update, policy)?;
-        let map_cycles = match options.map {
+        let mut map_cycles = match options.map {
             MapMode::DuringUpdate | MapMode::Rescan => update.rescan_cycles + update.map_cycles,
             MapMode::Scan => engine.scan().cycles + engine.table().subcubes() as u64,
             MapMode::None => 0,
@@ -811,6 +843,36 @@ pub fn run_sequence(
                         stale += (a && !b) as u64;
                     }
                 }
+            }
+            // Bounding bricks: their flags from the same table, a brick's range the hull of
+            // its sub-cubes' (a pass over the table after the map's, one entry per cycle),
+            // conservative as the map is.
+            let bricks = if hw.bricks.size > 0 {
+                let log2 = crate::bricks::check_brick_size(hw.bricks.size, memory.dims)?;
+                let ours = engine
+                    .table()
+                    .coarse_map(kind, log2, visible)
+                    .ok_or_else(|| {
+                        Error::Invalid(format!(
+                            "bricks.size = {} below the map's sub-cube size {subcube}",
+                            hw.bricks.size
+                        ))
+                    })?;
+                let exact = crate::bricks::build_brick_map(&memory, kind, hw.bricks.size, visible)?;
+                if let Some(c) = first_uncovered(&ours, &exact) {
+                    return Err(Error::Invalid(format!(
+                        "step {}: the brick flags leave brick {c:?} inactive but the volume in \
+                         memory has visible voxels there: not conservative",
+                        step.index
+                    )));
+                }
+                map_cycles += engine.table().subcubes() as u64;
+                Some(ours)
+            } else {
+                None
+            };
+            if let Some(bricks) = bricks {
+                prepared.set_brick_map(bricks)?;
             }
             prepared.set_occupancy_map(ours.clone())?;
             map = Some(ours);

@@ -343,6 +343,20 @@ impl<'v> Prepared<'v> {
         }
     }
 
+    /// Replaces the bounding bricks' flags by `map` (built elsewhere: the update engine's, in a
+    /// dynamic sequence). An error when the run has no bricks or `map` has another grid.
+    pub fn set_brick_map(&mut self, map: crate::occupancy::OccupancyMap) -> Result<()> {
+        match &mut self.renderer {
+            Renderer::Fixed(r) => match &mut r.ray_range {
+                Some(range) => range.set_brick_map(map),
+                None => Err(Error::Invalid("the run has no bricks".into())),
+            },
+            Renderer::Float(_) => Err(Error::Invalid(
+                "the float model's bricks come from its own table".into(),
+            )),
+        }
+    }
+
     /// The distance volume of `bits` this run's renderer would build for the transfer function
     /// and the map kind `kind` (as `FixedRenderer::new` builds it: '0' any non-zero voxel,
     /// class the classification table's test). Fixed-point models only.

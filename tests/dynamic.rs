@@ -798,3 +798,51 @@ fn a_next_volume_of_another_bit_depth_is_refused_naming_the_option_and_file() {
     assert!(e.contains("bit depths"), "{e}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Bounding bricks' flags from the min/max table (`MinMaxTable::coarse_map`): a brick's range
+/// is its sub-cubes' hull, so after a download (exact table) the flags equal
+/// `bricks::build_brick_map` on the volume at every brick edge ≥ the sub-cube's, for a volume
+/// that is no multiple of the bricks; after a partial update widened, they are conservative;
+/// a brick below the sub-cube has no flags from the table.
+#[test]
+fn brick_flags_from_the_table_equal_the_bricks_built_from_the_volume() {
+    let volume = metaballs(40, 0.0);
+    let next = metaballs(40, 0.3);
+    let tf = table(&band_tf(60.0, 140.0));
+    let visible = |lo, hi| tf.any_visible(lo, hi);
+    for (log2, bricks) in [(2u32, [4usize, 8, 16, 32]), (3, [8, 16, 32, 32])] {
+        let mut engine =
+            UpdateEngine::new(&config(Mapping::Replicated4), volume.dims, 8, log2, 0).unwrap();
+        engine
+            .update(&VolumeUpdate::full(&volume), PartialMapPolicy::Widen)
+            .unwrap();
+        for kind in [OccupancyKind::Zero, OccupancyKind::Class] {
+            for brick in bricks {
+                let what = format!("{kind:?} sub-cube {} brick {brick}", 1 << log2);
+                let ours = engine
+                    .table()
+                    .coarse_map(kind, brick.trailing_zeros(), visible)
+                    .unwrap();
+                let exact = vizsim::bricks::build_brick_map(&volume, kind, brick, visible).unwrap();
+                compare(&ours, &exact, true, &what);
+            }
+        }
+        assert!(engine
+            .table()
+            .coarse_map(OccupancyKind::Zero, log2 - 1, visible)
+            .is_none());
+        let update = vizsim::dynamic::changed_bricks(&volume, &next, 4).unwrap();
+        let report = engine.update(&update, PartialMapPolicy::Widen).unwrap();
+        assert!(
+            report.subcubes_partial > 0,
+            "the test needs a widened table"
+        );
+        let exact =
+            vizsim::bricks::build_brick_map(&next, OccupancyKind::Class, 16, visible).unwrap();
+        let ours = engine
+            .table()
+            .coarse_map(OccupancyKind::Class, 4, visible)
+            .unwrap();
+        compare(&ours, &exact, false, "widened");
+    }
+}

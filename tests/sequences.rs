@@ -574,8 +574,12 @@ fn configurations_the_update_model_does_not_model_are_refused() {
             "occupancy.structure",
         ),
         (
-            sequence(&["--subcube", "4", "--bricks", "8"]),
-            "bricks.size",
+            sequence(&["--map", "none", "--bricks", "8"]),
+            "bricks.size = 8 with --map none",
+        ),
+        (
+            sequence(&["--subcube", "8", "--bricks", "4"]),
+            "bricks.size = 4 below occupancy.subcube = 8",
         ),
         (
             sequence(&["--map", "none", "--set", "occupancy.structure=distance"]),
@@ -731,4 +735,45 @@ fn a_sequence_renders_in_perspective_as_sim_does() {
     let persp = cycles("persp");
     assert_eq!(persp, json["cycles"].as_u64().unwrap());
     assert_ne!(persp, cycles("ortho"));
+}
+
+/// Bounding bricks in a sequence: their flags are rebuilt each step from the map's min/max
+/// table (conservative as the map is), every frame equals its non-leaping frame, and the
+/// flags' pass over the table (one entry per cycle) is in the map cycles.
+#[test]
+fn a_sequence_rebuilds_the_brick_flags_from_the_maps_table() {
+    let mut run = describe(4, OccupancyKind::Class, "class");
+    let plain_map = check_every_frame(
+        &run,
+        "phantom:metaballs:32",
+        &options(3, 0.3, MapMode::DuringUpdate),
+    );
+    let without = run_sequence(
+        &run,
+        "phantom:metaballs:32",
+        &options(3, 0.3, MapMode::DuringUpdate),
+        |_| Ok(()),
+    )
+    .unwrap();
+    run.hardware.bricks.size = 16;
+    let with_bricks = check_every_frame(
+        &run,
+        "phantom:metaballs:32",
+        &options(3, 0.3, MapMode::DuringUpdate),
+    );
+    assert_eq!(plain_map, with_bricks, "the map is the same");
+    let mut verified = options(3, 0.3, MapMode::DuringUpdate);
+    verified.verify = true;
+    let with = run_sequence(&run, "phantom:metaballs:32", &verified, |_| Ok(())).unwrap();
+    let subcubes = 8u64 * 8 * 8;
+    for (a, b) in without.steps.iter().zip(&with.steps) {
+        assert_eq!(b.equals_non_leaping, Some(true));
+        assert_eq!(b.update_cycles, a.update_cycles, "step {}", a.step);
+        assert_eq!(b.map_cycles, a.map_cycles + subcubes, "step {}", a.step);
+        assert_ne!(
+            b.render_cycles, a.render_cycles,
+            "step {}: bricks change the frame",
+            a.step
+        );
+    }
 }

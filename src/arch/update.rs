@@ -383,6 +383,43 @@ impl MinMaxTable {
         }
     }
 
+    /// The map of `kind` over cubes of edge 2^`log2` ≥ the table's sub-cubes (bounding bricks'
+    /// flags): a cube's range is its sub-cubes' hull (the least min, the greatest max), which
+    /// is the range of its own dilated block, since those of its sub-cubes tile it. So it is
+    /// `OccupancyMap::build`'s at that edge when the table is exact, and conservative when the
+    /// table is widened. None when `log2` is below the table's.
+    pub fn coarse_map(
+        &self,
+        kind: OccupancyKind,
+        log2: u32,
+        visible: impl Fn(u16, u16) -> bool,
+    ) -> Option<OccupancyMap> {
+        let shift = log2.checked_sub(self.cube_log2)?;
+        let dims = self.volume_dims.map(|d| d.div_ceil(1 << log2));
+        let mut lo = vec![u16::MAX; dims.iter().product()];
+        let mut hi = vec![0u16; lo.len()];
+        for z in 0..self.dims[2] {
+            for y in 0..self.dims[1] {
+                for x in 0..self.dims[0] {
+                    let [cx, cy, cz] = [x, y, z].map(|c| c >> shift);
+                    let coarse = cx + dims[0] * (cy + dims[1] * cz);
+                    let (min, max) = self.entry([x, y, z]);
+                    lo[coarse] = lo[coarse].min(min);
+                    hi[coarse] = hi[coarse].max(max);
+                }
+            }
+        }
+        let cells = lo
+            .iter()
+            .zip(&hi)
+            .map(|(&lo, &hi)| match kind {
+                OccupancyKind::Zero => (hi > 0) as u8,
+                OccupancyKind::Class => (lo <= hi && visible(lo, hi)) as u8,
+            })
+            .collect();
+        Some(OccupancyMap::from_cells(log2, dims, cells))
+    }
+
     /// The occupancy map of `kind` from the table: '0' occupied when max > 0, class when
     /// `visible(min, max)` (`OccupancyMap::build`'s tests on the same blocks).
     pub fn map(&self, kind: OccupancyKind, visible: impl Fn(u16, u16) -> bool) -> OccupancyMap {

@@ -67,7 +67,10 @@ pub struct SequenceArgs {
 pub fn run(args: SequenceArgs) -> Result<()> {
     let config = args.hardware.load(&[])?;
     // Before anything is printed: a configuration the update model does not model.
-    vizsim::dynamic::check_modelled(&config, vizsim::dynamic::UpdateUse::Sequence)?;
+    vizsim::dynamic::check_modelled(
+        &config,
+        vizsim::dynamic::UpdateUse::Sequence { map: args.map },
+    )?;
     anyhow::ensure!(
         // The size as configured (--subcube, --set or the file), not only the flag.
         args.map == MapMode::None || config.occupancy.subcube > 0,
@@ -142,7 +145,7 @@ pub fn run(args: SequenceArgs) -> Result<()> {
     }
     let ms = |cycles: f64| vizsim::text::milliseconds(cycles / (report.clock_mhz * 1e3));
     println!(
-        "{} {:?}, map {}{}, {}³ bricks, ordering: {} (update, map, render in turn)",
+        "{} {:?}, map {}{}{}, updates in {}³ bricks, ordering: {} (update, map, render in turn)",
         report.source,
         report.dims,
         report.map.name(),
@@ -157,6 +160,13 @@ pub fn run(args: SequenceArgs) -> Result<()> {
                 }
             ))
             .unwrap_or_default(),
+        match run.hardware.bricks.size {
+            0 => String::new(),
+            b => format!(
+                ", {b}³ bounding bricks (their flags rebuilt from the map's table: a pass of \
+                 one entry per cycle, in the map cycles)"
+            ),
+        },
         report.brick,
         report.ordering
     );

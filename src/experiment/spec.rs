@@ -1273,10 +1273,10 @@ impl Plan {
                                 }
                                 // A sequence run the update model does not model is left out
                                 // with the reason the sequence itself would refuse it.
-                                if map.is_some() {
+                                if let Some(map) = map {
                                     if let Err(e) = crate::dynamic::check_modelled(
                                         &config,
-                                        crate::dynamic::UpdateUse::Sequence,
+                                        crate::dynamic::UpdateUse::Sequence { map },
                                     ) {
                                         skip(Skipped {
                                             dataset: name.clone(),
