@@ -211,6 +211,33 @@ pub fn check_modelled(hw: &HardwareConfig, used: UpdateUse) -> Result<()> {
     Ok(())
 }
 
+/// The configuration fields (paths or prefixes) `vizsim update` reads: the clock, the memory
+/// and SDRAM (its writes and scans), the map's sub-cube and SRAM, the classification table's
+/// size (the class map). The others shape a frame, which `update` does not render.
+const READ_BY_UPDATE: [&str; 6] = [
+    "clock.frequency_mhz",
+    "memory.",
+    "sdram.",
+    "occupancy.subcube",
+    "occupancy.sram_bits",
+    "classification.lut_bits",
+];
+
+/// The changed fields of `hw` (as `HardwareConfig::differences_from_default` writes them,
+/// `field = value`) that `measure` does not read: `vizsim update` names them, as `sim` names
+/// the fields without effect in its run.
+pub fn unread_by_update(hw: &HardwareConfig) -> Vec<String> {
+    hw.differences_from_default()
+        .into_iter()
+        .filter(|d| {
+            let path = d.split(" = ").next().unwrap_or_default();
+            !READ_BY_UPDATE
+                .iter()
+                .any(|read| path == *read || (read.ends_with('.') && path.starts_with(read)))
+        })
+        .collect()
+}
+
 /// Measures a download of `volume`, a scan, the costs of a transfer-function change, and with
 /// `next` a partial update to it (changed `brick`³ bricks) under both map policies. The maps are
 /// checked against `OccupancyMap::build`; an error if one is not exact (or, widened, not

@@ -777,3 +777,52 @@ fn a_sequence_rebuilds_the_brick_flags_from_the_maps_table() {
         );
     }
 }
+
+/// `update` names the changed fields it does not read (they shape a frame, which it does not
+/// render): its figures are the same without them; a field it reads is not named and changes
+/// them (a review found render-only `--set`s taken silently).
+#[test]
+fn update_names_the_fields_it_does_not_read() {
+    let update = |sets: &[&str]| {
+        let mut args = vec!["update", "phantom:metaballs:32", "--subcube", "4", "--json"];
+        for s in sets {
+            args.extend(["--set", s]);
+        }
+        let out = vizsim(&args);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        (
+            String::from_utf8(out.stdout).unwrap(),
+            String::from_utf8(out.stderr).unwrap(),
+        )
+    };
+    let (plain, said) = update(&[]);
+    assert!(!said.contains("without effect"), "{said}");
+    let unread = [
+        "ray_queue.rays=4",
+        "compositing.ert=false",
+        "skip.latency=4",
+        "interpolation.weight_bits=6",
+        "occupancy.kind=\"zero\"",
+    ];
+    let (figures, said) = update(&unread);
+    assert_eq!(
+        figures, plain,
+        "fields update does not read changed its figures"
+    );
+    for field in [
+        "ray_queue.rays",
+        "compositing.ert",
+        "skip.latency",
+        "interpolation.weight_bits",
+        "occupancy.kind",
+    ] {
+        assert!(said.contains(field), "{field}: {said}");
+    }
+    let (figures, said) = update(&["sdram.t_rcd=3"]);
+    assert!(!said.contains("without effect"), "{said}");
+    assert_ne!(figures, plain, "sdram.t_rcd changes the writes");
+}

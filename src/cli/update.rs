@@ -58,6 +58,15 @@ pub fn run(args: UpdateArgs) -> Result<()> {
         "--subcube: the sub-cube size of the maps is required (or occupancy.subcube by --set or \
          --config)"
     );
+    let unread = vizsim::dynamic::unread_by_update(&config);
+    if !unread.is_empty() {
+        // On standard error: standard output may be JSON (`--json`).
+        vizsim::note!(
+            "note: without effect in update (it measures writes, maps and scans, and renders no \
+             frame): {}",
+            unread.join(", ")
+        );
+    }
     let volume = args.data.load(args.dataset.spec())?;
     let tf = vizsim::transfer::resolve_for(&args.tf, &volume).context("--tf")?;
     let table = ClassificationTable::build(
