@@ -105,6 +105,12 @@ pub enum Metric {
     /// Pixels with a channel more than 1 level off the float reference's image (experiments
     /// with `float_reference = true`).
     PixelsOff,
+    /// On-chip bits the run's structures need: the occupancy map's SRAM, the brick flags and
+    /// blocking's indirection table (0 for a run without any).
+    OnChipBits,
+    /// SDRAM rows per bank beyond the volume's: the distance array adds rows, blocking saves
+    /// them (negative); 0 for the others.
+    SdramRows,
 }
 
 impl Metric {
@@ -128,6 +134,8 @@ impl Metric {
             Metric::ImageError => "mean error against the float reference (8-bit levels)",
             Metric::Psnr => "PSNR against the float reference (dB)",
             Metric::PixelsOff => "pixels more than 1 level off the float reference",
+            Metric::OnChipBits => "on-chip bits (map SRAM + brick flags + blocking table)",
+            Metric::SdramRows => "SDRAM rows per bank beyond the volume's",
         }
     }
 
@@ -151,6 +159,8 @@ impl Metric {
             Metric::ImageError => "image-error",
             Metric::Psnr => "psnr",
             Metric::PixelsOff => "pixels-off",
+            Metric::OnChipBits => "on-chip-bits",
+            Metric::SdramRows => "sdram-rows",
         }
     }
 
@@ -167,7 +177,9 @@ impl Metric {
             | Metric::RowMisses
             | Metric::QueueEmpty
             | Metric::TotalCycles
-            | Metric::PixelsOff => true,
+            | Metric::PixelsOff
+            | Metric::OnChipBits
+            | Metric::SdramRows => true,
             Metric::Fps
             | Metric::PageHits
             | Metric::NsPerAccess
@@ -207,6 +219,16 @@ impl Metric {
             Metric::ImageError => &[&["float_reference", "mean_abs_error"]],
             Metric::Psnr => &[&["float_reference", "psnr_db"]],
             Metric::PixelsOff => &[&["float_reference", "pixels_over_1_lsb"]],
+            Metric::OnChipBits => &[
+                &["structure_memory", "map_sram_bits"],
+                &["structure_memory", "brick_flag_bits"],
+                &["blocking", "table_sram_bits"],
+            ],
+            Metric::SdramRows => &[
+                &["structure_memory", "extra_sdram_rows_per_bank"],
+                &["blocking", "rows_blocked"],
+                &["blocking", "rows_unblocked"],
+            ],
         }
     }
 
@@ -232,6 +254,16 @@ impl Metric {
                 let total = (*total)?;
                 (total > 0.0).then(|| cut.map(|c| 100.0 * c / total))?
             }
+            // Written only for runs that store something: a run without either stores nothing.
+            (Metric::OnChipBits, [map, flags, table]) => {
+                Some(map.unwrap_or(0.0) + flags.unwrap_or(0.0) + table.unwrap_or(0.0))
+            }
+            (Metric::SdramRows, [distance, blocked, unblocked]) => Some(
+                distance.unwrap_or(0.0)
+                    + blocked
+                        .zip(*unblocked)
+                        .map_or(0.0, |(blocked, unblocked)| blocked - unblocked),
+            ),
             (_, [figure]) => *figure,
             _ => unreachable!("every metric with several inputs is combined above"),
         }
@@ -246,6 +278,10 @@ pub fn measured_by(metric: Metric, model: &str, lines: &[&Value]) -> String {
     match (metric, model) {
         // Skippable sub-cubes are a property of the map, not of a model's timing.
         (Metric::Skippable, _) => "occupancy map".into(),
+        // Storage: from the configuration and the volume's dimensions, whatever the model.
+        (Metric::OnChipBits | Metric::SdramRows, _) => {
+            "the configuration and the volume's dimensions".into()
+        }
         // The image, not the timing: the model's frame, whatever its clock.
         (Metric::ImageError | Metric::Psnr | Metric::PixelsOff, "step") => {
             "step model's image".into()
@@ -656,7 +692,12 @@ pub fn build(
         // Only timing is estimated: steps, samples and structure figures stay exact.
         let counted = matches!(
             metric,
-            Metric::Steps | Metric::Samples | Metric::Skippable | Metric::PositionsCut
+            Metric::Steps
+                | Metric::Samples
+                | Metric::Skippable
+                | Metric::PositionsCut
+                | Metric::OnChipBits
+                | Metric::SdramRows
         );
         cell.3 |= !counted && is_estimate(line);
     }
@@ -1336,6 +1377,53 @@ mod tests {
         assert!(md.contains("| ERT = 8³ (tied) |"), "{md}");
         let md = markdown([130.0, 100.0, 100.0]);
         assert!(md.contains("| none, 1.30× ERT |"), "{md}");
+    }
+
+    /// The storage metrics add what each run stores: the map's SRAM, the brick flags and
+    /// blocking's table on chip; the distance array's rows and blocking's saved rows in the
+    /// SDRAM; a run that stores nothing has 0 of both.
+    #[test]
+    fn storage_metrics_add_each_structures_memory() {
+        let mut lines = [
+            line("ert", 0, 100, false),
+            line("ert+leap8+bricks16", 0, 100, false),
+            line("ert+distance8", 0, 100, false),
+            line("ert+leap8", 0, 100, false),
+        ];
+        lines[1]["structure_memory"] = serde_json::json!({
+            "map_sram_bits": 4096, "brick_flag_bits": 512,
+            "extra_sdram_rows_per_bank": 0, "voxel_word_bits": 0
+        });
+        lines[2]["structure_memory"] = serde_json::json!({
+            "map_sram_bits": 0, "brick_flag_bits": 0,
+            "extra_sdram_rows_per_bank": 256, "voxel_word_bits": 0
+        });
+        lines[3]["structure_memory"] = serde_json::json!({
+            "map_sram_bits": 4096, "brick_flag_bits": 0,
+            "extra_sdram_rows_per_bank": 0, "voxel_word_bits": 0
+        });
+        lines[3]["blocking"] = serde_json::json!({
+            "table_sram_bits": 6144, "rows_blocked": 100, "rows_unblocked": 256
+        });
+        let values = |metric: Metric| lines.iter().map(|l| metric.value(l)).collect::<Vec<_>>();
+        assert_eq!(
+            values(Metric::OnChipBits),
+            [Some(0.0), Some(4608.0), Some(0.0), Some(10240.0)]
+        );
+        assert_eq!(
+            values(Metric::SdramRows),
+            [Some(0.0), Some(0.0), Some(256.0), Some(-156.0)]
+        );
+        let refs: Vec<&serde_json::Value> = lines.iter().collect();
+        let rows = ["dataset".to_string(), "tf".to_string()];
+        let md = build(&refs, Metric::SdramRows, &rows, "mode", "t")
+            .unwrap()
+            .markdown();
+        assert!(md.contains("| -156 |"), "{md}");
+        assert_eq!(
+            super::measured_by(Metric::OnChipBits, "step", &refs),
+            "the configuration and the volume's dimensions"
+        );
     }
 
     /// A count's table is in one style: whole numbers in every column, every digit kept
