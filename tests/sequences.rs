@@ -826,3 +826,38 @@ fn update_names_the_fields_it_does_not_read() {
     assert!(!said.contains("without effect"), "{said}");
     assert_ne!(figures, plain, "sdram.t_rcd changes the writes");
 }
+
+/// A sequence experiment takes bounding bricks with its map modes (their flags rebuilt from
+/// the map's table) and leaves out, with the reason, bricks below the sub-cube and bricks
+/// with `map = "none"` (no table).
+#[test]
+fn a_sequence_experiment_takes_bricks_with_a_map() {
+    let experiment = r#"
+name = "bricks"
+datasets = ["phantom:metaballs:32"]
+tf = ["class"]
+modes = ["ert+leap8+bricks16", "ert+leap8+bricks4"]
+models = ["cycle"]
+[frames]
+orbit = 1
+size = "16x16"
+[sequence]
+steps = 2
+map = ["update", "none"]
+"#;
+    let e = vizsim::experiment::spec::expand(experiment, "bricks", None).unwrap();
+    let modes: Vec<String> = e.runs.iter().map(|r| r.mode.name()).collect();
+    assert!(modes.iter().all(|m| m == "ert+leap8+bricks16"), "{modes:?}");
+    assert_eq!(
+        e.runs.len(),
+        2,
+        "two steps of the one run that can be: {modes:?}"
+    );
+    let reasons: Vec<&String> = e.skipped.iter().map(|s| &s.reason).collect();
+    for needle in ["below occupancy.subcube = 8", "with --map none"] {
+        assert!(
+            reasons.iter().any(|r| r.contains(needle)),
+            "{needle}: {reasons:?}"
+        );
+    }
+}

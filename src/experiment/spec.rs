@@ -670,11 +670,15 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
             }
             for m in &modes {
                 // The occupancy map, with or without its hierarchy (the map's byte layout,
-                // which `vizsim sequence --hierarchy` models too), is what a sequence follows.
+                // which `vizsim sequence --hierarchy` models too), is what a sequence follows;
+                // bounding bricks are rebuilt from its table (`dynamic::check_modelled` leaves
+                // out the runs where they cannot be).
                 let plain = Mode {
                     ert: m.ert,
                     subcube: m.subcube,
                     hierarchy: m.hierarchy,
+                    bricks: m.bricks,
+                    brick_table: m.brick_table,
                     ..Mode::parse("none").expect("valid")
                 };
                 if *m != plain {
@@ -682,8 +686,9 @@ pub fn plan(text: &str, source: &str, data_dir: Option<&Path>) -> Result<Plan> {
                         "modes",
                         format!(
                             "`{}`: a sequence experiment takes `none`, `ert`, `leapN`, \
-                             `ert+leapN` and `ert+leapN+hier` (the map follows the volume as \
-                             `sequence.map` says)",
+                             `ert+leapN` and `ert+leapN+hier`, each with `+bricksN` (the map \
+                             follows the volume as `sequence.map` says, the brick flags the \
+                             map's table)",
                             m.name()
                         ),
                     ));
