@@ -372,10 +372,12 @@ pub struct Candidate {
     pub hierarchy: bool,
     /// SRAM bits the occupancy map needs (map candidates).
     pub map_bits: Option<u64>,
-    /// The configuration fits the hardware: its map `occupancy.sram_bits`, and the volume with
-    /// its distance array (distance candidates) the SDRAM's `memory.rows`.
+    /// The cycle model accepts the configuration: its map fits `occupancy.sram_bits`, and
+    /// everything `sim` checks before it runs holds (`run::check_without_building`: the
+    /// hardware's validation, blocking included, and the volume with its distance array in the
+    /// SDRAM's `memory.rows`).
     pub fits: bool,
-    /// Why it does not fit, as the cycle model would refuse it (None when it fits).
+    /// Why it does not fit, in short, as the cycle model would refuse it (None when it fits).
     pub misfit: Option<String>,
     /// Empty sub-cubes of the map, percent.
     pub skippable_percent: Option<f64>,
@@ -406,6 +408,10 @@ pub struct Advice {
     pub cost_model: CostModel,
     /// Best predicted first.
     pub ranking: Vec<Candidate>,
+    /// Candidates the cycle model refuses whose steps the functional model could not count
+    /// either (not ranked). Written out only when there are some.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub not_predicted: Vec<NotPredicted>,
     /// The fastest predicted candidate that fits the SRAM (`mode`).
     pub recommended: String,
     /// Wall time of the advice (loading the volume excluded), seconds.
@@ -510,6 +516,91 @@ fn label(mode: &Mode) -> String {
     }
 }
 
+/// Steps, samples and leaps summed over the views, and the map's skippable share.
+struct Counts {
+    steps: u64,
+    samples: u64,
+    leaps: u64,
+    skippable: Option<f64>,
+}
+
+/// Counts `mode`'s steps with the functional model (`run` is its step run at the reduced size)
+/// over `views`; returns the counts and the transfer function's name. The widest distance
+/// volume is built once (on a run prepared without leaping) and kept in `widest_distance` for
+/// the narrower widths, which is exact (the saturation is the transform's last step).
+fn count_steps(
+    run: &RunDescription,
+    volume: &Volume,
+    mode: &Mode,
+    views: &[String],
+    widest_distance: &mut Option<crate::leapvalues::DistanceVolume>,
+) -> Result<(Counts, String)> {
+    let prepared = if mode.distance_bits > 0 {
+        let mut plain = run.clone();
+        plain.hardware.occupancy.structure = LeapStructure::Map;
+        plain.hardware.occupancy.subcube = 0;
+        let mut prepared = run::prepare(&plain, volume)?;
+        let kind = run.hardware.occupancy.kind;
+        if widest_distance.is_none() {
+            *widest_distance = Some(prepared.build_distance_volume(*DISTANCE_BITS.end(), kind)?);
+        }
+        let distance = widest_distance
+            .as_ref()
+            .expect("built above")
+            .narrowed(mode.distance_bits)?;
+        prepared.set_distance_volume(distance, kind)?;
+        prepared
+    } else {
+        run::prepare(run, volume)?
+    };
+    let mut counts = Counts {
+        steps: 0,
+        samples: 0,
+        leaps: 0,
+        skippable: None,
+    };
+    for view in views {
+        let run = RunDescription {
+            view: view.clone(),
+            ..run.clone()
+        };
+        let report = run::execute(&run, &prepared, run::Probes::default())?;
+        counts.steps += report.measurements.steps;
+        counts.samples += report.measurements.samples;
+        counts.leaps += report.measurements.leaps;
+        counts.skippable = report.measurements.skippable_subcubes_percent;
+    }
+    Ok((counts, prepared.transfer_function.clone()))
+}
+
+/// A configuration error as a short reason for the advice's table: the field and the
+/// message's first clause (`blocking.block_size`: 32 is smaller than occupancy.subcube (64)).
+fn short_reason(error: &Error) -> String {
+    match error {
+        Error::Config { field, message, .. } => {
+            let cut = [message.find("; "), message.find(": ")]
+                .into_iter()
+                .flatten()
+                .min()
+                .unwrap_or(message.len());
+            format!("`{field}`: {}", &message[..cut])
+        }
+        other => other.to_string(),
+    }
+}
+
+/// A candidate the cycle model refuses and the functional model cannot count either: listed
+/// with its reasons, not ranked.
+#[derive(Clone, Debug, Serialize)]
+pub struct NotPredicted {
+    pub mode: String,
+    pub label: String,
+    /// Why the cycle model refuses it.
+    pub reason: String,
+    /// Why its steps could not be counted.
+    pub error: String,
+}
+
 /// Runs the advisor for `base` (its dataset, transfer function, image size, hardware) on
 /// `volume`, which must be the run's dataset.
 pub fn advise(base: &RunDescription, volume: &Volume, options: &AdviseOptions) -> Result<Advice> {
@@ -533,83 +624,78 @@ pub fn advise(base: &RunDescription, volume: &Volume, options: &AdviseOptions) -
         cost.distance_modules = distance_module_spread(base, volume, &options.views)?;
     }
     let sram_bits = base.hardware.occupancy.sram_bits;
-    // The memory the cycle model would check (`run::prepare`): the volume alone must fit for
-    // any configuration to run; a distance array doubles the rows (without blocking).
-    let memory_fit =
-        |distance: bool| run::check_volume_memory(&base.hardware, volume.dims, distance);
-    memory_fit(false)?;
+    // Every candidate is checked as the cycle model (`sim`) checks its run before it builds
+    // anything (`run::check_without_building`: the hardware's validation, the SDRAM rows of the
+    // volume and of a distance array, blocking), at the size the functional model traces (the
+    // frame itself is never rendered, so the memory budget applies to that image). ERT alone is
+    // the configuration as given: what refuses it refuses every candidate, and is an error, as
+    // it is for `sim`.
+    let cycle_check = |hardware: &HardwareConfig| {
+        run::check_without_building(
+            &RunDescription {
+                model: Model::Cycle,
+                size: (w, h),
+                hardware: hardware.clone(),
+                sample: None,
+                ..base.clone()
+            },
+            volume,
+        )
+    };
     let mut transfer_function = String::new();
     let mut ranking = Vec::new();
+    let mut not_predicted = Vec::new();
     let mut widest_distance: Option<crate::leapvalues::DistanceVolume> = None;
     for mode in candidate_modes(volume.dims, &options.structures) {
         let mut hardware = apply_mode(&base.hardware, &mode, &base.tf);
-        // A configuration that does not fit is predicted anyway (with the SRAM raised) so the
-        // ranking shows what a larger memory would gain; it is never recommended.
-        let (map_bits, misfit) = if mode.subcube > 0 {
-            let bits = map_bits(volume.dims, mode.subcube, mode.hierarchy);
-            if bits > sram_bits {
-                hardware.occupancy.sram_bits = bits.next_power_of_two();
-            }
-            let misfit = (bits > sram_bits).then(|| {
+        let map_bits =
+            (mode.subcube > 0).then(|| map_bits(volume.dims, mode.subcube, mode.hierarchy));
+        let misfit = match cycle_check(&hardware) {
+            Err(e) if mode.name() == "ert" => return Err(e),
+            Err(e) => Some(short_reason(&e)),
+            Ok(()) => map_bits.filter(|&bits| bits > sram_bits).map(|bits| {
                 format!("its map needs {bits} bits, `occupancy.sram_bits` is {sram_bits}")
-            });
-            (Some(bits), misfit)
-        } else if mode.distance_bits > 0 {
-            let misfit = memory_fit(true).err().map(|e| match e {
-                Error::Config { message, .. } => format!("{message} (`memory.rows`)"),
-                other => other.to_string(),
-            });
-            (None, misfit)
-        } else {
-            (None, None)
+            }),
         };
-        let run = RunDescription {
+        // A configuration that does not fit is predicted anyway (a map with the SRAM raised,
+        // as `raise_sram` does; one that blocking refuses without blocking) so the ranking
+        // shows what it would gain where it runs; it is never recommended.
+        if let Some(bits) = map_bits.filter(|&bits| bits > hardware.occupancy.sram_bits) {
+            hardware.occupancy.sram_bits = bits.next_power_of_two();
+        }
+        let mut run = RunDescription {
             model: Model::Step,
             size: (w, h),
             hardware,
             ..base.clone()
         };
-        let prepared = if mode.distance_bits > 0 {
-            // One distance transform for every width: the widest is built once (on a run
-            // prepared without leaping) and narrowed, which is exact (the saturation is the
-            // transform's last step).
-            let mut plain = run.clone();
-            plain.hardware.occupancy.structure = LeapStructure::Map;
-            plain.hardware.occupancy.subcube = 0;
-            let mut prepared = run::prepare(&plain, volume)?;
-            let kind = run.hardware.occupancy.kind;
-            if widest_distance.is_none() {
-                widest_distance = Some(prepared.build_distance_volume(*DISTANCE_BITS.end(), kind)?);
-            }
-            let distance = widest_distance
-                .as_ref()
-                .expect("built above")
-                .narrowed(mode.distance_bits)?;
-            prepared.set_distance_volume(distance, kind)?;
-            prepared
-        } else {
-            run::prepare(&run, volume)?
-        };
-        transfer_function = prepared.transfer_function.clone();
-        let (mut steps, mut samples, mut leaps) = (0u64, 0u64, 0u64);
-        let mut skippable = None;
-        for view in &options.views {
-            let run = RunDescription {
-                view: view.clone(),
-                ..run.clone()
-            };
-            let report = run::execute(&run, &prepared, run::Probes::default())?;
-            steps += report.measurements.steps;
-            samples += report.measurements.samples;
-            leaps += report.measurements.leaps;
-            skippable = report.measurements.skippable_subcubes_percent;
+        if misfit.is_some() && run.hardware.blocking.enabled && run.validate().is_err() {
+            run.hardware.blocking.enabled = false;
         }
+        let counted = count_steps(&run, volume, &mode, &options.views, &mut widest_distance);
+        let (counts, prepared_tf) = match counted {
+            Ok(counted) => counted,
+            // What the functional model cannot run either is listed with its reason: the
+            // advice goes on without it.
+            Err(e) if misfit.is_some() => {
+                not_predicted.push(NotPredicted {
+                    mode: mode.name(),
+                    label: label(&mode),
+                    reason: misfit.unwrap_or_default(),
+                    error: short_reason(&e),
+                });
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
+        transfer_function = prepared_tf;
         let per_frame = scale / options.views.len() as f64;
         let (steps, samples, leaps) = (
-            steps as f64 * per_frame,
-            samples as f64 * per_frame,
-            leaps as f64 * per_frame,
+            counts.steps as f64 * per_frame,
+            counts.samples as f64 * per_frame,
+            counts.leaps as f64 * per_frame,
         );
+        let skippable = counts.skippable;
         let structure = if mode.distance_bits > 0 {
             CandidateStructure::Distance
         } else if mode.leap_values.is_some() {
@@ -665,6 +751,7 @@ pub fn advise(base: &RunDescription, volume: &Volume, options: &AdviseOptions) -
         sram_bits,
         cost_model: cost,
         ranking,
+        not_predicted,
         recommended,
         seconds: start.elapsed().as_secs_f64(),
         cpu_seconds: process_cpu_seconds()
@@ -1093,7 +1180,22 @@ pub fn advice_text(advice: &Advice) -> String {
         "| rank | configuration | mode | map bits | fits | skippable % | steps (M) | samples (M) | predicted fps | × ERT |"
     );
     let _ = writeln!(text, "|---:|---|---|---:|---|---:|---:|---:|---:|---:|");
+    // Why a candidate does not fit: a numbered note per distinct reason, below the table.
+    let mut reasons: Vec<&str> = Vec::new();
     for (i, c) in advice.ranking.iter().enumerate() {
+        let fits = match &c.misfit {
+            None => "yes".to_string(),
+            Some(reason) => {
+                let n = match reasons.iter().position(|r| *r == reason.as_str()) {
+                    Some(n) => n + 1,
+                    None => {
+                        reasons.push(reason);
+                        reasons.len()
+                    }
+                };
+                format!("no ({n})")
+            }
+        };
         let _ = writeln!(
             text,
             "| {} | {}{}{} | {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} |",
@@ -1109,7 +1211,7 @@ pub fn advice_text(advice: &Advice) -> String {
             c.map_bits
                 .map(|b| b.to_string())
                 .unwrap_or_else(|| "–".into()),
-            if c.fits { "yes" } else { "no" },
+            fits,
             c.skippable_percent
                 .map(|p| format!("{p:.1}"))
                 .unwrap_or_else(|| "–".into()),
@@ -1117,6 +1219,20 @@ pub fn advice_text(advice: &Advice) -> String {
             c.samples / 1e6,
             c.predicted_fps,
             c.speedup_over_ert
+        );
+    }
+    if !reasons.is_empty() {
+        let _ = writeln!(text, "\nnot accepted by the cycle model (`sim`):");
+        for (n, reason) in reasons.iter().enumerate() {
+            let _ = writeln!(text, "({}) {reason}", n + 1);
+        }
+    }
+    for c in &advice.not_predicted {
+        let _ = writeln!(
+            text,
+            "\nnot predicted: {} (`{}`): the cycle model refuses it ({}), and its steps could not \
+             be counted ({})",
+            c.label, c.mode, c.reason, c.error
         );
     }
     if advice.ranking.iter().any(|c| upper_bound(&c.mode)) {

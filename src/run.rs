@@ -537,6 +537,21 @@ pub fn check_blocked_fit(
     ))
 }
 
+/// What `prepare` refuses for `run` on `volume` that can be told without building its
+/// structures: the run's own checks (`RunDescription::validate`, the hardware's included),
+/// `check_on_volume`, and with blocking and the SDRAM model the block size dividing the volume
+/// and the active blocks fitting the memory (the checks a sweep makes when it expands). The
+/// occupancy map's SRAM fit needs the map's size only: `occupancy::map_bits`. `advise` checks
+/// every candidate with it, so that what it calls fitting is what `sim` runs.
+pub fn check_without_building(run: &RunDescription, volume: &Volume) -> Result<()> {
+    run.validate()?;
+    check_on_volume(run, volume)?;
+    if let Some(table) = blocked_fit_table(run, volume)? {
+        check_blocked_fit(run, volume.dims, &table)?;
+    }
+    Ok(())
+}
+
 /// Validates `run` and prepares it on `volume` (which must be the run's dataset).
 pub fn prepare<'v>(run: &RunDescription, volume: &'v Volume) -> Result<Prepared<'v>> {
     run.validate()?;

@@ -153,6 +153,64 @@ fn fits_exactly_when_the_cycle_model_accepts_the_run() {
     assert!(error.contains("memory.rows"), "{error}");
 }
 
+/// With blocking, the cycle model refuses distance volumes, leap values and sub-cubes larger
+/// than a block (`HardwareConfig::validate`): advise ranked them as fitting, or (a 64³ map with
+/// the default 32³ blocks) aborted. Every candidate is now checked as `sim` checks it: it fits
+/// exactly when the cycle model prepares its run, and one that does not is shown with its reason,
+/// never recommended, and the advice goes on.
+#[test]
+fn with_blocking_fits_exactly_what_the_cycle_model_runs() {
+    let dataset = "phantom:cast:64";
+    let volume = dataset::load(dataset, None).unwrap();
+    let all = vec![Structure::Map, Structure::Distance, Structure::LeapValues];
+    let modes = advise::candidate_modes(volume.dims, &all);
+    for block_size in [32, 64] {
+        let mut run = base(dataset, "class", (32, 32), Some(1 << 20));
+        run.hardware.blocking.enabled = true;
+        run.hardware.blocking.block_size = block_size;
+        let advice = advise::advise(&run, &volume, &options(1, (16, 16), all.clone()))
+            .unwrap_or_else(|e| panic!("block {block_size}: {e}"));
+        assert!(
+            advice.not_predicted.is_empty(),
+            "{:?}",
+            advice.not_predicted
+        );
+        assert_eq!(advice.ranking.len(), modes.len());
+        let mut refused = 0;
+        for c in &advice.ranking {
+            let mode = modes.iter().find(|m| m.name() == c.mode).unwrap();
+            let cycle = RunDescription {
+                model: Model::Cycle,
+                hardware: advise::apply_mode(&run.hardware, mode, "class"),
+                ..run.clone()
+            };
+            let accepted = run::prepare(&cycle, &volume);
+            assert_eq!(
+                c.fits,
+                accepted.is_ok(),
+                "block {block_size}: {c:?}: {:?}",
+                accepted.err().map(|e| e.to_string())
+            );
+            if !c.fits {
+                refused += 1;
+                let reason = c.misfit.as_deref().unwrap();
+                assert!(reason.contains("blocking."), "{reason}");
+                assert!(c.predicted_fps > 0.0, "{c:?}");
+            }
+        }
+        // Distance volumes (2), leap values, and with 32³ blocks the 64³ map.
+        assert_eq!(refused, if block_size == 32 { 4 } else { 3 }, "{advice:#?}");
+        let recommended = advice.recommended();
+        assert!(recommended.fits, "{recommended:?}");
+        let text = advise::advice_text(&advice);
+        assert!(
+            text.contains("blocking works with occupancy.structure = \"map\" only"),
+            "{text}"
+        );
+        assert!(text.contains("| no (1) |"), "{text}");
+    }
+}
+
 #[test]
 fn full_image_steps_equal_the_functional_model() {
     let spec = "phantom:metaballs:32";
