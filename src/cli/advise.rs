@@ -215,8 +215,23 @@ fn validate(args: &AdviseArgs, dir: &std::path::Path) -> Result<()> {
             } else {
                 format!(" ({})", row.axes)
             };
+            let faster = if row.faster_not_ranked.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; faster, a mode advise does not rank: {}",
+                    row.faster_not_ranked
+                        .iter()
+                        .map(|u| format!(
+                            "{} {:.2} fps (+{:.1} %)",
+                            u.mode, u.fps, u.faster_percent
+                        ))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            };
             vizsim::note!(
-                "{} {}{axes}: advised {} ({:.2} fps), best {} ({:.2} fps), loss {:.1} %, {:.2} s",
+                "{} {}{axes}: advised {} ({:.2} fps), best {} ({:.2} fps), loss {:.1} %, {:.2} s{faster}",
                 row.dataset,
                 row.tf,
                 row.advised,
