@@ -795,18 +795,114 @@ pub struct ValidationRow {
     /// the advised configuration for this pair, fastest first: then the advice is the true best
     /// among the ranked modes only.
     pub faster_not_ranked: Vec<FasterUnranked>,
+    /// Every predicted configuration's error (the mean and largest above are over these).
+    pub fps_errors: Vec<ConfigError>,
 }
 
-/// Mean and largest |predicted / measured − 1| in percent over `(mode, measured fps)`.
-fn fps_errors<'a>(advice: &Advice, truth: impl Iterator<Item = (&'a str, f64)>) -> (f64, f64) {
-    let errors: Vec<f64> = truth
+/// The structure groups the prediction error is reported by.
+pub const ERROR_GROUPS: [&str; 5] = [
+    "ERT alone",
+    "map",
+    "map + hierarchy",
+    "distance",
+    "leap values",
+];
+
+impl Candidate {
+    /// Its group in the error report (`ERROR_GROUPS`).
+    pub fn error_group(&self) -> &'static str {
+        match self.structure {
+            CandidateStructure::None => ERROR_GROUPS[0],
+            CandidateStructure::Map if self.hierarchy => ERROR_GROUPS[2],
+            CandidateStructure::Map => ERROR_GROUPS[1],
+            CandidateStructure::Distance => ERROR_GROUPS[3],
+            CandidateStructure::LeapValues => ERROR_GROUPS[4],
+        }
+    }
+}
+
+/// One configuration's predicted frame rate against the cycle model's.
+#[derive(Clone, Debug, Serialize)]
+pub struct ConfigError {
+    pub mode: String,
+    /// `ERROR_GROUPS`.
+    pub group: String,
+    pub predicted_fps: f64,
+    pub measured_fps: f64,
+    /// predicted / measured − 1, percent: positive is optimistic (predicted faster).
+    pub error_percent: f64,
+}
+
+/// The error of every configuration of `truth` (`(mode, measured fps)`) the advisor predicted,
+/// and the mean and largest |error| in percent over them.
+fn fps_errors<'a>(
+    advice: &Advice,
+    truth: impl Iterator<Item = (&'a str, f64)>,
+) -> (f64, f64, Vec<ConfigError>) {
+    let errors: Vec<ConfigError> = truth
         .filter_map(|(m, fps)| {
             let c = advice.ranking.iter().find(|c| c.mode == m)?;
-            Some(100.0 * (c.predicted_fps / fps - 1.0).abs())
+            Some(ConfigError {
+                mode: c.mode.clone(),
+                group: c.error_group().to_string(),
+                predicted_fps: c.predicted_fps,
+                measured_fps: fps,
+                error_percent: 100.0 * (c.predicted_fps / fps - 1.0),
+            })
         })
         .collect();
-    let mean = errors.iter().sum::<f64>() / errors.len().max(1) as f64;
-    (mean, errors.iter().copied().fold(0.0, f64::max))
+    let mean =
+        errors.iter().map(|e| e.error_percent.abs()).sum::<f64>() / errors.len().max(1) as f64;
+    let max = errors
+        .iter()
+        .map(|e| e.error_percent.abs())
+        .fold(0.0, f64::max);
+    (mean, max, errors)
+}
+
+/// The prediction error of one structure group over a validation's pairs.
+#[derive(Clone, Debug, Serialize)]
+pub struct GroupError {
+    pub group: String,
+    /// Configurations of the group over all pairs, and the pairs that have one.
+    pub configurations: usize,
+    pub pairs: usize,
+    /// Mean |error|, mean signed error (positive: predicted faster than the cycle model) and
+    /// the largest |error|, percent, over the group's configurations.
+    pub mean_abs_percent: f64,
+    pub mean_percent: f64,
+    pub max_abs_percent: f64,
+}
+
+/// The rows' configuration errors by structure group (`ERROR_GROUPS` order; groups without a
+/// configuration left out).
+pub fn errors_by_group(rows: &[ValidationRow]) -> Vec<GroupError> {
+    ERROR_GROUPS
+        .iter()
+        .filter_map(|group| {
+            let errors: Vec<f64> = rows
+                .iter()
+                .flat_map(|r| &r.fps_errors)
+                .filter(|e| e.group == *group)
+                .map(|e| e.error_percent)
+                .collect();
+            if errors.is_empty() {
+                return None;
+            }
+            let n = errors.len() as f64;
+            Some(GroupError {
+                group: group.to_string(),
+                configurations: errors.len(),
+                pairs: rows
+                    .iter()
+                    .filter(|r| r.fps_errors.iter().any(|e| e.group == *group))
+                    .count(),
+                mean_abs_percent: errors.iter().map(|e| e.abs()).sum::<f64>() / n,
+                mean_percent: errors.iter().sum::<f64>() / n,
+                max_abs_percent: errors.iter().map(|e| e.abs()).fold(0.0, f64::max),
+            })
+        })
+        .collect()
 }
 
 /// How `validate` runs the advisor.
@@ -861,6 +957,8 @@ impl FasterUnranked {
 #[derive(Clone, Debug, Serialize)]
 pub struct Validation {
     pub rows: Vec<ValidationRow>,
+    /// The prediction error by structure over every pair (`errors_by_group`).
+    pub errors_by_structure: Vec<GroupError>,
     /// Pairs whose runs are not all in the folder yet (`dataset tf: N of M runs`).
     pub incomplete: Vec<String>,
     /// Modes of the folder's cycle-model runs that the advisor does not rank (bricks, iso,
@@ -1155,7 +1253,7 @@ pub fn validate(
             .max_by(|a, b| a.1.total_cmp(&b.1))
             .unwrap_or_else(|| (advised.mode.clone(), mean(&advised.mode).unwrap_or(0.0)));
         let advised_fps = mean(&advised.mode).unwrap_or(0.0);
-        let (error_mean, error_max) = fps_errors(
+        let (error_mean, error_max, config_errors) = fps_errors(
             &advice,
             pair.modes
                 .keys()
@@ -1211,11 +1309,13 @@ pub fn validate(
             fps_error_mean_percent: error_mean,
             fps_error_max_percent: error_max,
             faster_not_ranked,
+            fps_errors: config_errors,
         };
         progress(&row);
         rows.push(row);
     }
     Ok(Validation {
+        errors_by_structure: errors_by_group(&rows),
         rows,
         incomplete,
         not_ranked: not_ranked.into_iter().collect(),
@@ -1421,6 +1521,27 @@ pub fn validation_markdown(validation: &Validation, command: &str) -> String {
             .map(|r| r.fps_error_max_percent)
             .fold(0.0f64, f64::max)
     );
+    if !validation.errors_by_structure.is_empty() {
+        let _ = writeln!(
+            text,
+            "\nPrediction error by structure (predicted / cycle model − 1 over every \
+             configuration of that structure in every pair; + is predicted faster):\n\n\
+             | structure | configurations | pairs | mean \\|error\\| % | mean signed % | max \\|error\\| % |\n\
+             |---|---:|---:|---:|---:|---:|"
+        );
+        for g in &validation.errors_by_structure {
+            let _ = writeln!(
+                text,
+                "| {} | {} | {} | {:.1} | {:+.1} | {:.1} |",
+                g.group,
+                g.configurations,
+                g.pairs,
+                g.mean_abs_percent,
+                g.mean_percent,
+                g.max_abs_percent
+            );
+        }
+    }
     if !beaten.is_empty() {
         let _ = writeln!(
             text,
@@ -1691,7 +1812,7 @@ pub fn validate_table(
             .max_by(|a, b| a.1.total_cmp(&b.1))
             .expect("the advised configuration is in the table");
         let advised_fps = fps_of(&advised.mode).unwrap_or(0.0);
-        let (error_mean, error_max) = fps_errors(
+        let (error_mean, error_max, config_errors) = fps_errors(
             &advice,
             modes
                 .iter()
@@ -1736,6 +1857,7 @@ pub fn validate_table(
             fps_error_mean_percent: error_mean,
             fps_error_max_percent: error_max,
             faster_not_ranked,
+            fps_errors: config_errors,
         };
         progress(&row);
         rows.push(row);
@@ -1744,6 +1866,7 @@ pub fn validate_table(
         return Err(bad(2, "no rows: the table holds only its header".into()));
     }
     Ok(Validation {
+        errors_by_structure: errors_by_group(&rows),
         rows,
         incomplete: Vec::new(),
         not_ranked: Vec::new(),

@@ -970,6 +970,129 @@ fn validation_names_unranked_modes_that_beat_the_advice() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// The validation reports its prediction error per structure (one mean hid maps within 3 % and
+/// leap values 2× optimistic): each structure's line is computed from the configurations of
+/// that structure only, each against the cycle model's mean frame rate in the folder.
+#[test]
+fn validation_reports_the_prediction_error_per_structure() {
+    let exe = env!("CARGO_BIN_EXE_vizsim");
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!(
+        "vizsim-advise-per-structure-{}",
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let experiment = dir.join("structures.toml");
+    std::fs::write(
+        &experiment,
+        "name = \"structures\"\ndatasets = [\"phantom:sphere:32\"]\ntf = [\"zero\", \"class\"]\n\
+         modes = [\"ert\", \"ert+leap4\", \"ert+leap8\", \"ert+leap4+hier\", \"ert+distance8\"]\n\
+         models = [\"cycle\"]\n[frames]\norbit = 72\nselect = [0, 9]\nsize = \"24x24\"\n",
+    )
+    .unwrap();
+    let results = dir.join("runs");
+    sweep_into(&experiment, &results);
+    // The cycle model's mean frame rate per (tf, mode), from the folder itself.
+    let mut measured: std::collections::BTreeMap<(String, String), Vec<f64>> = Default::default();
+    for line in std::fs::read_to_string(results.join("results.jsonl"))
+        .unwrap()
+        .lines()
+    {
+        let l: serde_json::Value = serde_json::from_str(line).unwrap();
+        measured
+            .entry((
+                l["tf"].as_str().unwrap().into(),
+                l["mode"].as_str().unwrap().into(),
+            ))
+            .or_default()
+            .push(l["fps"].as_f64().unwrap());
+    }
+    let out = Command::new(exe)
+        .args(["advise", "--validate"])
+        .arg(&results)
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    // Each configuration's error against the folder's mean, grouped by its mode's name.
+    let group_of = |mode: &str| match mode {
+        "ert" => "ERT alone",
+        m if m.contains("distance") => "distance",
+        m if m.ends_with("+hier") => "map + hierarchy",
+        _ => "map",
+    };
+    let mut expected: std::collections::BTreeMap<&str, Vec<f64>> = Default::default();
+    for row in report["rows"].as_array().unwrap() {
+        let tf = row["tf"].as_str().unwrap();
+        let errors = row["fps_errors"].as_array().unwrap();
+        assert_eq!(errors.len(), 5, "{row}");
+        for e in errors {
+            let mode = e["mode"].as_str().unwrap();
+            let runs = &measured[&(tf.to_string(), mode.to_string())];
+            let mean = runs.iter().sum::<f64>() / runs.len() as f64;
+            assert!(
+                (e["measured_fps"].as_f64().unwrap() - mean).abs() < 1e-9 * mean,
+                "{e}"
+            );
+            let error = 100.0 * (e["predicted_fps"].as_f64().unwrap() / mean - 1.0);
+            assert!(
+                (e["error_percent"].as_f64().unwrap() - error).abs() < 1e-9,
+                "{e}"
+            );
+            assert_eq!(e["group"], group_of(mode), "{e}");
+            expected.entry(group_of(mode)).or_default().push(error);
+        }
+    }
+    let groups = report["errors_by_structure"].as_array().unwrap();
+    assert_eq!(groups.len(), 4, "{groups:?}");
+    for g in groups {
+        let errors = &expected[g["group"].as_str().unwrap()];
+        let n = errors.len() as f64;
+        assert_eq!(g["configurations"], errors.len(), "{g}");
+        assert_eq!(g["pairs"], 2, "{g}");
+        let close = |field: &str, value: f64| {
+            assert!(
+                (g[field].as_f64().unwrap() - value).abs() < 1e-9,
+                "{field}: {g}"
+            )
+        };
+        close("mean_percent", errors.iter().sum::<f64>() / n);
+        close(
+            "mean_abs_percent",
+            errors.iter().map(|e| e.abs()).sum::<f64>() / n,
+        );
+        close(
+            "max_abs_percent",
+            errors.iter().map(|e| e.abs()).fold(0.0, f64::max),
+        );
+    }
+    // Two maps per pair without the hierarchy, one with it.
+    assert_eq!(expected["map"].len(), 4);
+    assert_eq!(expected["map + hierarchy"].len(), 2);
+    let text = String::from_utf8(
+        Command::new(exe)
+            .args(["advise", "--validate"])
+            .arg(&results)
+            .output()
+            .unwrap()
+            .stdout,
+    )
+    .unwrap();
+    for group in ["ERT alone", "map", "map + hierarchy", "distance"] {
+        assert!(
+            text.lines()
+                .any(|l| l.starts_with(&format!("| {group} | "))),
+            "no line of {group}: {text}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// Runs `vizsim sweep EXPERIMENT --out OUT`, which must succeed (its stderr shown if not).
 fn sweep_into(experiment: &std::path::Path, out: &std::path::Path) {
     let sweep = Command::new(env!("CARGO_BIN_EXE_vizsim"))
