@@ -144,9 +144,9 @@ pub struct CostModel {
     /// Cycles a ray waits per step besides queueing at a module and at the issue slot: the
     /// skip unit's latency, CL and two cycles of request and return.
     pub step_delay: f64,
-    /// Cycles a ray waits from issuing a read to its next decision with a row miss and no
-    /// queueing (leap values: `step_delay` + the miss penalty).
-    pub read_round_trip: f64,
+    /// Memory cycles a leap-value step's sample occupies each module: 1 + the leap-value
+    /// row-miss rate × the miss penalty (`LEAP_VALUE_ROW_MISS_RATE`).
+    pub leap_value_cycles_per_sample: f64,
     /// Rays in flight.
     pub rays: f64,
     /// Voxels between adjacent rays (the image's view width over its pixels): below 1, several
@@ -165,6 +165,14 @@ pub const CALIBRATED_ROW_MISS_RATE: f64 = 0.03;
 /// has opened it), per leap step: the design data's (`runs/leaping-structures`, 256×256:
 /// 0–0.45, docs/advise.md).
 pub const LEAP_DISTANCE_MISS_RATE: f64 = 0.25;
+
+/// Row misses per voxel read with leap values in the volume (docs/advise.md, "Leap values"):
+/// every ray waits for its own sample's words, so the ray queue rarely has more than one ready
+/// ray to choose from and lagging-first selection cannot keep the rays side by side; they drift
+/// into different rows of a bank, as with round-robin selection. Calibrated on the six
+/// leap-value runs of the review (engine, tooth 140×120×161, hydrogen atom; '0' and class;
+/// 128×128, orbit frame 0: 20.5–32.8 % misses, mean 27.6 %), not per dataset.
+pub const LEAP_VALUE_ROW_MISS_RATE: f64 = 0.28;
 
 /// Mean value analysis of a closed network: `customers` rays, each step a pure delay of
 /// `delay` cycles and a visit to each of `count` alike stations `(demand per step, count)`:
@@ -214,7 +222,7 @@ impl CostModel {
             modules: config.memory.modules() as f64,
             distance_modules: config.memory.modules() as f64,
             step_delay,
-            read_round_trip: step_delay + miss_penalty,
+            leap_value_cycles_per_sample: 1.0 + LEAP_VALUE_ROW_MISS_RATE * miss_penalty,
             rays: config.ray_queue.rays.max(1) as f64,
             ray_spacing,
             distance_same_bank: config.memory.distance_placement
@@ -276,9 +284,19 @@ impl CostModel {
                 per_step
             }
             CandidateStructure::LeapValues => {
-                // The next position waits for the step's own sample words; every step reads.
-                let latency = self.read_round_trip / self.rays;
-                issue.max(latency).max(self.cycles_per_sample)
+                // Every step samples, and the ray's next position waits for that sample's words
+                // (the leap value comes with them): each ray has one step in flight, a closed
+                // network of R rays through a delay (skip latency, CL, request and return), the
+                // issue slot and the modules. With the rays drifting apart, a module's word
+                // costs 1 + the leap-value miss rate × (t_RP + t_RCD): that work is the bound at
+                // the default 16 rays, the round trip below about 8.
+                let per_module = self.leap_value_cycles_per_sample;
+                let network = closed_network_cycles_per_step(
+                    self.rays,
+                    self.step_delay,
+                    &[(1.0, 1), (per_module, 1)],
+                );
+                issue.max(per_module).max(network)
             }
         };
         steps * per_step
@@ -494,9 +512,9 @@ pub fn apply_mode(base: &HardwareConfig, mode: &Mode, tf: &str) -> HardwareConfi
     config
 }
 
-/// Whether a ranked mode's predicted frame rate is only an upper bound (leap values: their
-/// cost is a lower bound, docs/advise.md "Leap values").
-fn upper_bound(mode: &str) -> bool {
+/// Whether a ranked mode's cost rests on the leap-value row-miss rate, one calibrated figure
+/// whose cycle-model values spread widely (docs/advise.md "Leap values").
+fn leap_value_calibrated(mode: &str) -> bool {
     mode.split('+').any(|t| t == "leapvalues")
 }
 
@@ -1373,7 +1391,11 @@ pub fn advice_text(advice: &Advice) -> String {
             "| {} | {}{}{} | {} | {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} |",
             i + 1,
             c.label,
-            if upper_bound(&c.mode) { " †" } else { "" },
+            if leap_value_calibrated(&c.mode) {
+                " †"
+            } else {
+                ""
+            },
             if c.mode == advice.recommended {
                 " ◀ recommended"
             } else {
@@ -1407,12 +1429,16 @@ pub fn advice_text(advice: &Advice) -> String {
             c.label, c.mode, c.reason, c.error
         );
     }
-    if advice.ranking.iter().any(|c| upper_bound(&c.mode)) {
+    if advice
+        .ranking
+        .iter()
+        .any(|c| leap_value_calibrated(&c.mode))
+    {
         let _ = writeln!(
             text,
-            "\n† an upper bound: the cost model does not count the row each leap lands in \
-             (the cycle model measured 1.3–2.7 cycles per step for leap values; docs/advise.md, \
-             \"Leap values\")"
+            "\n† from one calibrated row-miss rate (28 %): with leap values the rays drift apart \
+             and miss rows at 11–33 % on the cycle model, so this is within about ±30 % \
+             (docs/advise.md, \"Leap values\")"
         );
     }
     let r = advice.recommended();

@@ -385,7 +385,7 @@ fn cli_prints_the_ranking_and_json() {
 /// Leap values' predicted frame rate is an upper bound (their cost model leaves out the row each
 /// leap lands in): the table marks their row and says so; maps alone have no mark.
 #[test]
-fn leap_values_are_marked_an_upper_bound() {
+fn leap_values_are_marked_as_resting_on_a_calibrated_miss_rate() {
     let exe = env!("CARGO_BIN_EXE_vizsim");
     let advise = |structures: &str| {
         let out = Command::new(exe)
@@ -414,7 +414,10 @@ fn leap_values_are_marked_an_upper_bound() {
         with.contains("| leap values † | ert+leapvalues |"),
         "{with}"
     );
-    assert!(with.contains("† an upper bound"), "{with}");
+    assert!(
+        with.contains("† from one calibrated row-miss rate"),
+        "{with}"
+    );
     let without = advise("map");
     assert!(!without.contains('†'), "{without}");
 }
@@ -1125,4 +1128,44 @@ fn the_hierarchy_is_offered_only_where_it_groups_sub_cubes() {
         .map(|m| m.name())
         .collect();
     assert!(long.contains(&"ert+leap32+hier".to_string()), "{long:?}");
+}
+
+/// Leap values: every step waits for its own words (one step per ray in flight) and the rays
+/// drift apart into other rows. The cost comes from the configuration: the modules' work per
+/// step (1 + the leap-value miss rate × (t_RP + t_RCD)) at the default 16 rays, the round trip
+/// of R rays (skip latency, CL, issue, module) when R is small. The first model charged the
+/// round trip over R with no queueing and predicted them about 2× too fast.
+#[test]
+fn leap_value_steps_cost_the_modules_work_or_the_round_trip() {
+    use vizsim::advise::{CandidateStructure, CostModel, LEAP_VALUE_ROW_MISS_RATE};
+    let config = |set: &[&str]| {
+        let set: Vec<String> = set.iter().map(|s| s.to_string()).collect();
+        HardwareConfig::load(None, &set).unwrap()
+    };
+    let per_step = |c: &HardwareConfig| {
+        CostModel::new(c, 1.0).cycles(CandidateStructure::LeapValues, 1e6, 1e6) / 1e6
+    };
+    let default = config(&[]);
+    let penalty = (default.sdram.t_rp + default.sdram.t_rcd) as f64;
+    let work = 1.0 + LEAP_VALUE_ROW_MISS_RATE * penalty;
+    assert!(
+        (per_step(&default) - work).abs() < 1e-9,
+        "{}",
+        per_step(&default)
+    );
+    // Above ERT's cost per sample, which is what the first model predicted.
+    let ert = CostModel::new(&default, 1.0).cycles(CandidateStructure::None, 1e6, 1e6) / 1e6;
+    assert!(
+        per_step(&default) > 1.8 * ert,
+        "{} vs {ert}",
+        per_step(&default)
+    );
+    // Slower row misses cost more.
+    assert!(per_step(&config(&["sdram.t_rcd=4"])) > per_step(&default) + 0.5);
+    // Two rays cannot hide the round trip: at least (delay + issue + module) / 2.
+    let two = per_step(&config(&["ray_queue.rays=2"]));
+    let delay = (default.skip.latency + default.sdram.cl) as f64 + 2.0;
+    assert!(two >= (delay + 1.0 + work) / 2.0 - 1e-9, "{two}");
+    // A longer skip latency lengthens that round trip.
+    assert!(per_step(&config(&["ray_queue.rays=2", "skip.latency=16"])) > two + 3.0);
 }

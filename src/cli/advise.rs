@@ -49,7 +49,8 @@ pub struct AdviseArgs {
     rays: u64,
     /// Structures to rank besides ERT, comma-separated: map, distance, leap-values (default:
     /// map,distance). The distance volume and leap values are built for each run (about a
-    /// second each on 256³); leap values' cost is only a lower bound, so they are opt-in.
+    /// second each on 256³); leap values' cost rests on one calibrated row-miss rate, so
+    /// they are opt-in.
     /// With a --validate folder: the structures the advice may pick (default: every structure
     /// the folder ran; ERT alone always may); the true best is always over every configuration
     /// there.
