@@ -57,16 +57,42 @@ impl Structure {
     }
 }
 
+/// Sections of the configuration whose cost the advisor does not model: ray start and end
+/// (bricks, clip planes, geometry) and iso mode.
+pub const NOT_MODELLED: [&str; 4] = ["bricks", "iso", "clip", "geometry"];
+
+/// Which of `NOT_MODELLED` `hardware` turns on (from a `--config` file), if any.
+pub fn not_modelled_in(hardware: &HardwareConfig) -> Option<&'static str> {
+    if !hardware.bricks.is_off() {
+        Some("bricks.size")
+    } else if hardware.iso.enabled {
+        Some("iso.enabled")
+    } else if !hardware.clip.is_off() {
+        Some("clip")
+    } else if hardware.geometry.shape != crate::config::GeometryShape::None {
+        Some("geometry.shape")
+    } else {
+        None
+    }
+}
+
 /// Refuses `--set` overrides of the fields the candidates set themselves (ERT, the map, its
 /// kind, the structures): the ranking would override them without a word.
 pub fn check_overrides(overrides: &[String]) -> Result<()> {
     for o in overrides {
         let field = o.split_once('=').map_or(o.as_str(), |(f, _)| f).trim();
-        // The fields `apply_mode` sets; bricks and iso mode are the run's own and stay.
-        let set_by_candidates = MODE_FIELDS.contains(&field)
-            && !field.starts_with("bricks.")
-            && !field.starts_with("iso.");
-        if set_by_candidates {
+        if let Some(section) = NOT_MODELLED
+            .iter()
+            .find(|s| field.starts_with(&format!("{s}.")))
+        {
+            return Err(Error::Invalid(format!(
+                "--set {o}: the advisor's cost model has no per-ray setup or ray range \
+                 (`{section}.*`: bricks, iso mode, clip planes and geometry), so it would predict \
+                 such a run 13–22 % too fast (docs/advise.md); use `vizsim sim` for it"
+            )));
+        }
+        // The fields `apply_mode` sets (bricks and iso mode were refused above).
+        if MODE_FIELDS.contains(&field) {
             return Err(Error::Invalid(format!(
                 "--set {o}: the advisor ranks configurations that set `{field}` themselves \
                  (ERT, maps, hierarchy, distance volumes, leap values; the map kind follows --tf)"

@@ -109,6 +109,17 @@ pub fn run(args: AdviseArgs) -> Result<()> {
     let structures =
         parse_structures(&args)?.unwrap_or_else(|| vec![Structure::Map, Structure::Distance]);
     let hardware = load_hardware(&args)?;
+    if let Some(field) = advise::not_modelled_in(&hardware) {
+        anyhow::bail!(
+            "--config {}: `{field}` is on, and the advisor's cost model has no per-ray setup or \
+             ray range (bricks, iso mode, clip planes, geometry): it would predict such a run \
+             13–22 % too fast (docs/advise.md); use `vizsim sim` for it",
+            args.config
+                .as_deref()
+                .map(|p| p.display().to_string())
+                .unwrap_or_default()
+        );
+    }
     let size = image_size(&args)?;
     let views = view_count(&args)?;
     let sample_size = advise::reduced_size(size, args.rays);
