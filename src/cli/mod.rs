@@ -114,7 +114,9 @@ enum Command {
         mut_arg("subcube", |arg| arg.help(
             "Edge of the occupancy map's sub-cubes (2, 4, 8, 16, 32 or 64), required (here, or occupancy.subcube by --set or --config) unless --map none"
         )),
-        mut_arg("bricks", not_listed)
+        mut_arg("bricks", |arg| arg.help(
+            "Bounding bricks of this edge (at least the sub-cube's; the same as --set bricks.size=N): each ray starts at its first active brick and ends after its last; their flags are rebuilt each step from the map's min/max table"
+        ))
     )]
     Sequence(sequence::SequenceArgs),
 }
