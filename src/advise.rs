@@ -989,6 +989,18 @@ pub struct FasterUnranked {
 }
 
 impl FasterUnranked {
+    /// `mode` at `fps` against the advised configuration's `advised_fps` (the same frames):
+    /// Some when it is faster.
+    fn if_faster(mode: String, fps: f64, advised_fps: f64) -> Option<FasterUnranked> {
+        (fps > advised_fps).then(|| FasterUnranked {
+            mode,
+            fps,
+            advised_fps,
+            faster_fps: fps - advised_fps,
+            faster_percent: 100.0 * (fps / advised_fps.max(1e-12) - 1.0),
+        })
+    }
+
     fn describe(&self) -> String {
         format!(
             "{} {:.2} fps, {:.2} fps ({:.1} %) faster",
@@ -1323,13 +1335,7 @@ pub fn validate(
                 let n = shared.len() as f64;
                 let fps = shared.iter().map(|f| frames[f]).sum::<f64>() / n;
                 let advised_fps = shared.iter().map(|f| advised_frames[f]).sum::<f64>() / n;
-                (fps > advised_fps).then(|| FasterUnranked {
-                    mode: mode.clone(),
-                    fps,
-                    advised_fps,
-                    faster_fps: fps - advised_fps,
-                    faster_percent: 100.0 * (fps / advised_fps.max(1e-12) - 1.0),
-                })
+                FasterUnranked::if_faster(mode.clone(), fps, advised_fps)
             })
             .collect();
         faster_not_ranked.sort_by(|a, b| b.fps.total_cmp(&a.fps));
@@ -1879,13 +1885,7 @@ pub fn validate_table(
             .filter(|(_, mode)| mode.is_none())
             .filter_map(|((label, cell), _)| {
                 let fps = cell.parse::<f64>().ok().filter(|f| f.is_finite())?;
-                (fps > advised_fps).then(|| FasterUnranked {
-                    mode: label.clone(),
-                    fps,
-                    advised_fps,
-                    faster_fps: fps - advised_fps,
-                    faster_percent: 100.0 * (fps / advised_fps.max(1e-12) - 1.0),
-                })
+                FasterUnranked::if_faster(label.clone(), fps, advised_fps)
             })
             .collect();
         faster_not_ranked.sort_by(|a, b| b.fps.total_cmp(&a.fps));
