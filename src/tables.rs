@@ -891,13 +891,14 @@ impl Table {
     /// at the top are named together. A cell's marks (the SRAM raised) stay on its label.
     fn fastest_text(&self, row: usize) -> String {
         let values = &self.rows[row].1;
+        let header = self.header();
         let label = |ci: usize| {
             let mark = if self.raised_sram.contains(&(row, ci)) {
                 "*"
             } else {
                 ""
             };
-            format!("{}{mark}", self.header()[self.row_fields.len() + ci])
+            format!("{}{mark}", header[self.row_fields.len() + ci])
         };
         let mut ranked: Vec<(usize, f64)> = values
             .iter()
