@@ -1,6 +1,7 @@
 //! Charts of sweep results (`vizsim plot`), in the published figure style: cycles (or steps)
 //! per frame against the frame number, one line per acceleration mode, one chart per dataset
-//! and classification; skippable sub-cubes and frame rate against the sub-cube size; the frame
+//! and classification; the frame rate of every mode side by side (bars, the fastest marked);
+//! skippable sub-cubes and frame rate against the sub-cube size; the frame
 //! rate (and, for lines with `float_reference`, the image PSNR) against every swept hardware
 //! field.
 //!
@@ -19,7 +20,7 @@ use serde_json::Value;
 
 use crate::error::{Error, Result};
 use crate::experiment::spec::Mode;
-use crate::plot::{ChartOptions, LineChart, Series};
+use crate::plot::{BarChart, BarSeries, ChartOptions, LineChart, Series};
 use crate::tables::{field_text, mode_label, Metric};
 
 fn text(line: &Value, field: &str) -> String {
@@ -464,7 +465,76 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                     written += 1;
                 }
             }
-            // 2. Frame rate against the sub-cube size, '0' and class, with and without the
+            // 2. Frame rate by mode: every mode of the dataset side by side, a bar per
+            //    transfer function, the fastest marked (which acceleration wins here). Not for
+            //    a sequence's time steps, whose rates a bar would average without saying so.
+            let frames: Vec<&Value> = of
+                .iter()
+                .copied()
+                .filter(|l| l.get("time_step").is_none())
+                .collect();
+            let (split, _) = split_fields(&frames, None);
+            for facet in facets(&frames, &split) {
+                let modes: Vec<String> = {
+                    let mut modes: Vec<String> = facet
+                        .lines
+                        .iter()
+                        .map(|l| text(l, "mode"))
+                        .collect::<BTreeSet<_>>()
+                        .into_iter()
+                        .collect();
+                    modes.sort_by_key(|m| crate::tables::sort_key("mode", m));
+                    modes
+                };
+                if modes.len() < 2 {
+                    continue;
+                }
+                let title = format!(
+                    "{label}: frame rate by mode{} ({model_title})",
+                    facet.title()
+                );
+                let grouped = points(
+                    &facet.lines,
+                    |l| {
+                        let tf = text(l, "tf");
+                        let (tf_order, name) = tf_rank(&tf);
+                        Some(format!("{}{name}\u{0}{}", tf_order as u8, tf_label(&tf)))
+                    },
+                    |l| {
+                        let mode = text(l, "mode");
+                        modes.iter().position(|m| *m == mode).map(|i| i as f64)
+                    },
+                    |l| Metric::Fps.value(l),
+                );
+                let (series, note) = mean_over_frames(&title, grouped)?;
+                let series = series
+                    .into_iter()
+                    .map(|s| {
+                        let mut values = vec![None; modes.len()];
+                        for (x, y) in s.points {
+                            values[x as usize] = Some(y);
+                        }
+                        BarSeries {
+                            name: s.name.rsplit('\u{0}').next().unwrap_or_default().into(),
+                            values,
+                        }
+                    })
+                    .collect();
+                BarChart {
+                    title: &title,
+                    value_label: &with_note("frames per second", &note),
+                    categories: modes.iter().map(|m| mode_label(m)).collect(),
+                    series,
+                    mark_largest: Some("fastest"),
+                }
+                .write(&stem(format!(
+                    "{model}-fps-by-mode-{}{}",
+                    file_safe(dataset),
+                    facet.file_suffix()
+                )))?;
+                written += 1;
+            }
+            // 3. Frame rate against the sub-cube size, '0' and class, with and without the
             //    hierarchy (ERT + leaping modes).
             let leaping: Vec<&Value> = of
                 .iter()
@@ -535,7 +605,7 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                 )?;
                 written += 1;
             }
-            // 3. Frame rate (and with `float_reference` the PSNR) against each swept hardware
+            // 4. Frame rate (and with `float_reference` the PSNR) against each swept hardware
             //    field (numbers on a linear axis, or a
             //    logarithmic one when they span a decade or more; other values in their order,
             //    evenly spaced). Fields that advance together (a `zip`) make one chart, against
@@ -650,7 +720,7 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
             }
         }
     }
-    // 4. Skippable sub-cubes against the sub-cube size ('0' and class): a property of the
+    // 5. Skippable sub-cubes against the sub-cube size ('0' and class): a property of the
     //    dataset, transfer function and map, one chart for all datasets (split by the swept
     //    fields that change the map).
     let maps: Vec<&Value> = all

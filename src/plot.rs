@@ -1,5 +1,5 @@
-//! Line charts (plotters) written as PNG and SVG side by side, atomically, and contact sheets
-//! of frames with a text label above each panel.
+//! Line charts and horizontal bar charts (plotters) written as PNG and SVG side by side,
+//! atomically, and contact sheets of frames with a text label above each panel.
 //!
 //! Every series gets its own colour, line pattern (solid, dashed, dotted, long or short dashes) and point
 //! marker (● □ ▲ ◇ × ▽), so identical curves stay distinguishable where they overlap and a
@@ -9,7 +9,7 @@
 use std::path::{Path, PathBuf};
 
 use plotters::coord::types::RangedCoordf64;
-use plotters::coord::CoordTranslate;
+use plotters::coord::{CoordTranslate, Shift};
 use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
@@ -197,76 +197,17 @@ impl LineChart<'_> {
 
     /// Writes `stem.png` and `stem.svg` with `options`.
     pub fn write_with(&self, stem: &Path, options: &ChartOptions) -> Result<()> {
-        let png = with_suffix(stem, "png");
-        let svg = with_suffix(stem, "svg");
-        let layout = self.layout();
-        // plotters writes to a path itself: draw into temporary names, then rename, so an error
-        // never leaves a half-drawn chart under the real name.
-        // (hidden, with this process's id, so a later run removes what a kill left behind).
-        let tmp_png = crate::output::temporary_path_keeping_extension(&png)?;
-        let tmp_svg = crate::output::temporary_path_keeping_extension(&svg)?;
-        let result = (|| -> std::result::Result<(), String> {
-            self.draw(
-                BitMapBackend::new(&tmp_png, layout.size).into_drawing_area(),
-                &layout,
-                options,
-            )?;
-            self.draw(
-                SVGBackend::new(&tmp_svg, layout.size).into_drawing_area(),
-                &layout,
-                options,
-            )?;
-            Ok(())
-        })();
-        if let Err(message) = result {
-            let _ = std::fs::remove_file(&tmp_png);
-            let _ = std::fs::remove_file(&tmp_svg);
-            return Err(Error::Invalid(format!(
-                "drawing {}: {message}",
-                png.display()
-            )));
-        }
-        // Placed with the command's other outputs when it writes them all or none.
-        if let Err(e) = crate::output::place_finished(&tmp_png, &png) {
-            let _ = std::fs::remove_file(&tmp_svg);
-            return Err(e);
-        }
-        crate::output::place_finished(&tmp_svg, &svg)
+        write_chart(&LineWithOptions(self, options), stem)
     }
 
     fn layout(&self) -> Layout {
-        let names: Vec<String> = self
-            .series
-            .iter()
-            .map(|s| fit_text(&s.name, LABEL_FONT, LEGEND_TEXT_MAX))
-            .collect();
-        let longest = names
-            .iter()
-            .map(|n| text_width(n, LABEL_FONT))
-            .max()
-            .unwrap_or(0);
-        let legend_width = if names.is_empty() {
-            0
-        } else {
-            LEGEND_SAMPLE + longest + 3 * LEGEND_PAD
-        };
-        let width = CHART_SIZE.0 + legend_width;
-        let title = wrap_text(self.title, TITLE_FONT, width - 2 * MARGIN);
-        let title_height = MARGIN + title.len() as u32 * (TITLE_FONT + 6);
-        let legend_height = names.len() as u32 * LEGEND_ROW + 2 * LEGEND_PAD + 2 * MARGIN;
-        let height = (CHART_SIZE.1 + title_height).max(title_height + legend_height);
-        Layout {
-            size: (width, height),
-            title,
-            title_height,
-            legend_width,
-            names,
-        }
+        let names = self.series.iter().map(|s| s.name.as_str());
+        layout_of(self.title, names, CHART_SIZE.1)
     }
 
     fn draw<DB: DrawingBackend>(
         &self,
-        area: DrawingArea<DB, plotters::coord::Shift>,
+        area: DrawingArea<DB, Shift>,
         layout: &Layout,
         options: &ChartOptions,
     ) -> std::result::Result<(), String>
@@ -274,23 +215,7 @@ impl LineChart<'_> {
         DB::ErrorType: 'static,
     {
         let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
-        area.fill(&WHITE).map_err(err)?;
-        let title_style = ("sans-serif", TITLE_FONT)
-            .into_text_style(&area)
-            .pos(Pos::new(HPos::Center, VPos::Top));
-        for (i, line) in layout.title.iter().enumerate() {
-            area.draw_text(
-                line,
-                &title_style,
-                (
-                    layout.size.0 as i32 / 2,
-                    (MARGIN + i as u32 * (TITLE_FONT + 6)) as i32,
-                ),
-            )
-            .map_err(err)?;
-        }
-        let (_, body) = area.split_vertically(layout.title_height);
-        let (plot, legend) = body.split_horizontally(layout.size.0 - layout.legend_width);
+        let (plot, legend) = draw_title(&area, layout).map_err(err)?;
 
         let log = self.log_y_pays();
         let drawn: Vec<Vec<(f64, f64)>> = self
@@ -364,50 +289,21 @@ impl LineChart<'_> {
                 draw_marker(chart.plotting_area(), p, series_style(i)).map_err(err)?;
             }
         }
-        // The legend: a framed column right of the plotting area, top-aligned with it.
-        if !layout.names.is_empty() {
-            let rows = layout.names.len() as i32;
-            let (x0, y0) = (LEGEND_PAD as i32 / 2, MARGIN as i32);
-            let box_w = layout.legend_width as i32 - LEGEND_PAD as i32;
-            let box_h = rows * LEGEND_ROW as i32 + 2 * LEGEND_PAD as i32;
-            legend
-                .draw(&Rectangle::new(
-                    [(x0, y0), (x0 + box_w, y0 + box_h)],
-                    BLACK.stroke_width(1),
-                ))
-                .map_err(err)?;
-            let text_style = ("sans-serif", LABEL_FONT)
-                .into_text_style(&legend)
-                .pos(Pos::new(HPos::Left, VPos::Center));
-            for (i, name) in layout.names.iter().enumerate() {
-                let style = series_style(i);
-                let y =
-                    y0 + LEGEND_PAD as i32 + i as i32 * LEGEND_ROW as i32 + LEGEND_ROW as i32 / 2;
-                let (a, b) = (
-                    x0 + LEGEND_PAD as i32,
-                    x0 + (LEGEND_PAD + LEGEND_SAMPLE) as i32 - 6,
-                );
-                let line = style.colour.stroke_width(2);
-                match style.dash {
-                    None => legend.draw(&PathElement::new(vec![(a, y), (b, y)], line)),
-                    Some((dash, gap)) => legend.draw(&DashedPathElement::new(
-                        vec![(a, y), (b, y)],
-                        dash,
-                        gap,
-                        line,
-                    )),
-                }
-                .map_err(err)?;
-                draw_marker(&legend, ((a + b) / 2, y), style).map_err(err)?;
-                legend
-                    .draw_text(
-                        name,
-                        &text_style,
-                        (x0 + (LEGEND_PAD + LEGEND_SAMPLE) as i32, y),
-                    )
-                    .map_err(err)?;
-            }
-        }
+        draw_legend(&legend, layout, |legend, i, (a, b), y| {
+            let style = series_style(i);
+            let line = style.colour.stroke_width(2);
+            match style.dash {
+                None => legend.draw(&PathElement::new(vec![(a, y), (b, y)], line)),
+                Some((dash, gap)) => legend.draw(&DashedPathElement::new(
+                    vec![(a, y), (b, y)],
+                    dash,
+                    gap,
+                    line,
+                )),
+            }?;
+            draw_marker(legend, ((a + b) / 2, y), style)
+        })
+        .map_err(err)?;
         area.present().map_err(err)?;
         Ok(())
     }
@@ -518,6 +414,356 @@ impl LineChart<'_> {
             ticks,
         }
     }
+}
+
+/// One named series of a bar chart: a value per category (`None`: no bar there).
+pub struct BarSeries {
+    pub name: String,
+    pub values: Vec<Option<f64>>,
+}
+
+/// Horizontal grouped bars: one group per category, listed top to bottom, one bar per series
+/// in each group, its value written at its end. The largest value of each series is marked
+/// "fastest" when `mark_largest` (a frame-rate chart), every bar that equals it.
+pub struct BarChart<'a> {
+    pub title: &'a str,
+    pub value_label: &'a str,
+    pub categories: Vec<String>,
+    pub series: Vec<BarSeries>,
+    pub mark_largest: Option<&'a str>,
+}
+
+/// A bar's thickness and the gap between groups (pixels).
+const BAR_HEIGHT: u32 = 16;
+const BAR_GROUP_GAP: u32 = 12;
+const BAR_VALUE_FONT: u32 = 13;
+/// The x axis's label area below the bars (pixels).
+const X_LABEL_AREA: u32 = 44;
+
+impl BarChart<'_> {
+    /// Writes `stem.png` and `stem.svg`.
+    pub fn write(&self, stem: &Path) -> Result<()> {
+        write_chart(self, stem)
+    }
+
+    /// The text at the end of series `s`'s bar in category `c`.
+    fn value_text(&self, s: usize, c: usize) -> Option<String> {
+        let v = self.series[s].values.get(c).copied().flatten()?;
+        let best = self.series[s]
+            .values
+            .iter()
+            .flatten()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
+        Some(match self.mark_largest {
+            Some(word) if v >= best => format!("{} {word}", bar_number(v)),
+            _ => bar_number(v),
+        })
+    }
+}
+
+impl Chart for BarChart<'_> {
+    fn layout(&self) -> Layout {
+        let group = self.series.len().max(1) as u32 * BAR_HEIGHT + BAR_GROUP_GAP;
+        let body = self.categories.len() as u32 * group + X_LABEL_AREA + 2 * MARGIN;
+        layout_of(
+            self.title,
+            self.series.iter().map(|s| s.name.as_str()),
+            body.max(240),
+        )
+    }
+
+    fn draw<DB: DrawingBackend>(
+        &self,
+        area: DrawingArea<DB, Shift>,
+        layout: &Layout,
+    ) -> std::result::Result<(), String>
+    where
+        DB::ErrorType: 'static,
+    {
+        let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+        let (plot, legend) = draw_title(&area, layout).map_err(err)?;
+        let n = self.categories.len();
+        let values = || {
+            self.series
+                .iter()
+                .flat_map(|s| s.values.iter().flatten().copied())
+                .filter(|v| v.is_finite())
+        };
+        let high = values().fold(0.0, f64::max);
+        let low = values().fold(0.0, f64::min);
+        // Room right of the longest bar for its value and the mark.
+        let longest_text = (0..self.series.len())
+            .flat_map(|s| (0..n).filter_map(move |c| self.value_text(s, c)))
+            .map(|t| text_width(&t, BAR_VALUE_FONT))
+            .max()
+            .unwrap_or(0);
+        let labels: Vec<String> = self
+            .categories
+            .iter()
+            .map(|c| fit_text(c, LABEL_FONT, LEGEND_TEXT_MAX))
+            .collect();
+        let label_area = labels
+            .iter()
+            .map(|l| text_width(l, LABEL_FONT))
+            .max()
+            .unwrap_or(0)
+            + 16;
+        let plot_width = (layout.size.0 - layout.legend_width)
+            .saturating_sub(label_area + 2 * MARGIN)
+            .max(1);
+        let span = if high > low { high - low } else { 1.0 };
+        // The value text needs `longest_text` of the plot's pixels beyond the longest bar.
+        let room = (longest_text + 10) as f64 / plot_width as f64;
+        let right = high + span * (room / (1.0 - room).max(0.2));
+        let x_axis: RangedCoordf64 = (low..right).into();
+        let x_ticks = x_axis.key_points(10);
+        // Category c at y = n - 1 - c, so the first is at the top.
+        let y_axis = KeyedAxis {
+            linear: (-0.5..n as f64 - 0.5).into(),
+            ticks: (0..n).map(|c| c as f64).collect(),
+            grid: Vec::new(),
+        };
+        let mut chart = ChartBuilder::on(&plot)
+            .margin(MARGIN)
+            .x_label_area_size(X_LABEL_AREA)
+            .y_label_area_size(label_area)
+            .build_cartesian_2d(
+                KeyedAxis {
+                    linear: x_axis,
+                    grid: x_ticks.clone(),
+                    ticks: x_ticks,
+                },
+                y_axis,
+            )
+            .map_err(err)?;
+        let category_of = |y: &f64| -> String {
+            let c = n as i64 - 1 - y.round() as i64;
+            usize::try_from(c)
+                .ok()
+                .and_then(|c| labels.get(c))
+                .cloned()
+                .unwrap_or_default()
+        };
+        chart
+            .configure_mesh()
+            .disable_y_mesh()
+            .x_desc(self.value_label)
+            .x_label_formatter(&|x: &f64| si_number(*x))
+            .y_label_formatter(&category_of)
+            .label_style(("sans-serif", LABEL_FONT))
+            .draw()
+            .map_err(err)?;
+        let k = self.series.len().max(1) as f64;
+        // The group fills this share of a category's height; the rest is the gap.
+        let band = k * BAR_HEIGHT as f64 / (k * BAR_HEIGHT as f64 + BAR_GROUP_GAP as f64);
+        let thickness = band / k;
+        let text_style = ("sans-serif", BAR_VALUE_FONT)
+            .into_text_style(chart.plotting_area())
+            .pos(Pos::new(HPos::Left, VPos::Center));
+        for (s, series) in self.series.iter().enumerate() {
+            let colour = series_style(s).colour;
+            for (c, value) in series.values.iter().enumerate() {
+                let Some(v) = value.filter(|v| v.is_finite()) else {
+                    continue;
+                };
+                let top = (n - 1 - c) as f64 + band / 2.0 - s as f64 * thickness;
+                let bottom = top - thickness;
+                let inset = thickness * 0.08;
+                chart
+                    .draw_series(std::iter::once(Rectangle::new(
+                        [(0.0, bottom + inset), (v, top - inset)],
+                        colour.filled(),
+                    )))
+                    .map_err(err)?;
+                if let Some(text) = self.value_text(s, c) {
+                    chart
+                        .plotting_area()
+                        .draw(
+                            &(EmptyElement::at((v.max(0.0), (top + bottom) / 2.0))
+                                + Text::new(text, (4, 0), text_style.clone())),
+                        )
+                        .map_err(err)?;
+                }
+            }
+        }
+        draw_legend(&legend, layout, |legend, i, (a, b), y| {
+            let half = (LEGEND_ROW as i32 - 8) / 2;
+            legend.draw(&Rectangle::new(
+                [(a, y - half), (b, y + half)],
+                series_style(i).colour.filled(),
+            ))
+        })
+        .map_err(err)?;
+        area.present().map_err(err)?;
+        Ok(())
+    }
+}
+
+/// A chart `write_chart` can draw: its layout and its drawing on any backend.
+trait Chart {
+    fn layout(&self) -> Layout;
+    fn draw<DB: DrawingBackend>(
+        &self,
+        area: DrawingArea<DB, Shift>,
+        layout: &Layout,
+    ) -> std::result::Result<(), String>
+    where
+        DB::ErrorType: 'static;
+}
+
+struct LineWithOptions<'c, 'a>(&'c LineChart<'a>, &'c ChartOptions);
+
+impl Chart for LineWithOptions<'_, '_> {
+    fn layout(&self) -> Layout {
+        self.0.layout()
+    }
+
+    fn draw<DB: DrawingBackend>(
+        &self,
+        area: DrawingArea<DB, Shift>,
+        layout: &Layout,
+    ) -> std::result::Result<(), String>
+    where
+        DB::ErrorType: 'static,
+    {
+        self.0.draw(area, layout, self.1)
+    }
+}
+
+/// Writes `stem.png` and `stem.svg`.
+fn write_chart(chart: &impl Chart, stem: &Path) -> Result<()> {
+    let png = with_suffix(stem, "png");
+    let svg = with_suffix(stem, "svg");
+    let layout = chart.layout();
+    // plotters writes to a path itself: draw into temporary names, then rename, so an error
+    // never leaves a half-drawn chart under the real name.
+    // (hidden, with this process's id, so a later run removes what a kill left behind).
+    let tmp_png = crate::output::temporary_path_keeping_extension(&png)?;
+    let tmp_svg = crate::output::temporary_path_keeping_extension(&svg)?;
+    let result = (|| -> std::result::Result<(), String> {
+        chart.draw(
+            BitMapBackend::new(&tmp_png, layout.size).into_drawing_area(),
+            &layout,
+        )?;
+        chart.draw(
+            SVGBackend::new(&tmp_svg, layout.size).into_drawing_area(),
+            &layout,
+        )?;
+        Ok(())
+    })();
+    if let Err(message) = result {
+        let _ = std::fs::remove_file(&tmp_png);
+        let _ = std::fs::remove_file(&tmp_svg);
+        return Err(Error::Invalid(format!(
+            "drawing {}: {message}",
+            png.display()
+        )));
+    }
+    // Placed with the command's other outputs when it writes them all or none.
+    if let Err(e) = crate::output::place_finished(&tmp_png, &png) {
+        let _ = std::fs::remove_file(&tmp_svg);
+        return Err(e);
+    }
+    crate::output::place_finished(&tmp_svg, &svg)
+}
+
+/// The canvas for a chart titled `title` with a legend of `names` and a plotting area
+/// `body_height` pixels high (the legend may make it higher).
+fn layout_of<'n>(title: &str, names: impl Iterator<Item = &'n str>, body_height: u32) -> Layout {
+    let names: Vec<String> = names
+        .map(|n| fit_text(n, LABEL_FONT, LEGEND_TEXT_MAX))
+        .collect();
+    let longest = names
+        .iter()
+        .map(|n| text_width(n, LABEL_FONT))
+        .max()
+        .unwrap_or(0);
+    let legend_width = if names.is_empty() {
+        0
+    } else {
+        LEGEND_SAMPLE + longest + 3 * LEGEND_PAD
+    };
+    let width = CHART_SIZE.0 + legend_width;
+    let title = wrap_text(title, TITLE_FONT, width - 2 * MARGIN);
+    let title_height = MARGIN + title.len() as u32 * (TITLE_FONT + 6);
+    let legend_height = names.len() as u32 * LEGEND_ROW + 2 * LEGEND_PAD + 2 * MARGIN;
+    let height = (body_height + title_height).max(title_height + legend_height);
+    Layout {
+        size: (width, height),
+        title,
+        title_height,
+        legend_width,
+        names,
+    }
+}
+
+type Area<DB> = DrawingArea<DB, Shift>;
+type Drawn<T, DB> = std::result::Result<T, DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
+
+/// Fills the canvas white and draws the title; returns the plotting area and the legend column.
+fn draw_title<DB: DrawingBackend>(
+    area: &Area<DB>,
+    layout: &Layout,
+) -> Drawn<(Area<DB>, Area<DB>), DB> {
+    area.fill(&WHITE)?;
+    let title_style = ("sans-serif", TITLE_FONT)
+        .into_text_style(area)
+        .pos(Pos::new(HPos::Center, VPos::Top));
+    for (i, line) in layout.title.iter().enumerate() {
+        area.draw_text(
+            line,
+            &title_style,
+            (
+                layout.size.0 as i32 / 2,
+                (MARGIN + i as u32 * (TITLE_FONT + 6)) as i32,
+            ),
+        )?;
+    }
+    let (_, body) = area.split_vertically(layout.title_height);
+    Ok(body.split_horizontally(layout.size.0 - layout.legend_width))
+}
+
+/// The legend: a framed column right of the plotting area, top-aligned with it; `sample` draws
+/// series `i`'s sample between x = a and b at height y.
+fn draw_legend<DB: DrawingBackend>(
+    legend: &Area<DB>,
+    layout: &Layout,
+    sample: impl Fn(
+        &Area<DB>,
+        usize,
+        (i32, i32),
+        i32,
+    ) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>>,
+) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    if layout.names.is_empty() {
+        return Ok(());
+    }
+    let rows = layout.names.len() as i32;
+    let (x0, y0) = (LEGEND_PAD as i32 / 2, MARGIN as i32);
+    let box_w = layout.legend_width as i32 - LEGEND_PAD as i32;
+    let box_h = rows * LEGEND_ROW as i32 + 2 * LEGEND_PAD as i32;
+    legend.draw(&Rectangle::new(
+        [(x0, y0), (x0 + box_w, y0 + box_h)],
+        BLACK.stroke_width(1),
+    ))?;
+    let text_style = ("sans-serif", LABEL_FONT)
+        .into_text_style(legend)
+        .pos(Pos::new(HPos::Left, VPos::Center));
+    for (i, name) in layout.names.iter().enumerate() {
+        let y = y0 + LEGEND_PAD as i32 + i as i32 * LEGEND_ROW as i32 + LEGEND_ROW as i32 / 2;
+        let (a, b) = (
+            x0 + LEGEND_PAD as i32,
+            x0 + (LEGEND_PAD + LEGEND_SAMPLE) as i32 - 6,
+        );
+        sample(legend, i, (a, b), y)?;
+        legend.draw_text(
+            name,
+            &text_style,
+            (x0 + (LEGEND_PAD + LEGEND_SAMPLE) as i32, y),
+        )?;
+    }
+    Ok(())
 }
 
 fn bounds(values: &[f64]) -> Option<(f64, f64)> {
@@ -734,6 +980,16 @@ fn log_values(low: f64, high: f64, mantissas: &[f64]) -> Vec<f64> {
     out
 }
 
+/// A bar's value to three significant digits (5.72, 14.0, 49.6, 123), so bars read alike; from
+/// 10,000 up as the axis writes it (12.5k).
+fn bar_number(v: f64) -> String {
+    if v.abs() >= 1e4 || v == 0.0 || !v.is_finite() {
+        return si_number(v);
+    }
+    let decimals = (2 - v.abs().log10().floor() as i32).max(0) as usize;
+    format!("{v:.decimals$}")
+}
+
 /// Axis numbers: 1.5M, 250k, 12.5, 0.25.
 fn si_number(v: f64) -> String {
     let a = v.abs();
@@ -790,6 +1046,18 @@ mod tests {
         assert_eq!(
             with_suffix(stem, "png"),
             Path::new("out/cycle-fps-vs-skip.latency-fuel-ray_queue.rays=8.png")
+        );
+    }
+
+    #[test]
+    fn bar_values_have_three_significant_digits() {
+        let texts: Vec<String> = [5.7189, 14.0, 49.64, 123.4, 0.04567, 0.0, 25_300.0]
+            .into_iter()
+            .map(bar_number)
+            .collect();
+        assert_eq!(
+            texts,
+            ["5.72", "14.0", "49.6", "123", "0.0457", "0", "25.3k"]
         );
     }
 

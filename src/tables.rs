@@ -412,7 +412,9 @@ pub fn mode_label(mode: &str) -> String {
     }
 }
 
-fn sort_key(field: &str, text: &str) -> (i64, String) {
+/// Where a value of `field` goes among its row or column headers (modes: `none`, `ERT`, maps by
+/// size, distance volumes, leap values, each with its variants after it).
+pub fn sort_key(field: &str, text: &str) -> (i64, String) {
     match field {
         "mode" => {
             let tokens = || text.split('+');

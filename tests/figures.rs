@@ -21,8 +21,8 @@ fn scratch(name: &str) -> PathBuf {
 fn line(mode: &str, frame: u32, axes: Value, fps: f64, skippable: f64) -> Value {
     let subcube = mode
         .split('+')
-        .find_map(|t| t.strip_prefix("leap"))
-        .map_or(0, |n| n.parse::<u32>().unwrap());
+        .find_map(|t| t.strip_prefix("leap")?.parse::<u32>().ok())
+        .unwrap_or(0);
     let mut l = json!({
         "dataset": "phantom:sphere:64",
         "dataset_label": "phantom:sphere:64",
@@ -94,6 +94,8 @@ fn a_swept_field_splits_the_charts_one_per_value() {
         "cycle-per-frame-phantom-sphere-64-class-ray_queue.rays=8",
         "cycle-fps-vs-subcube-phantom-sphere-64-ray_queue.rays=4",
         "cycle-fps-vs-subcube-phantom-sphere-64-ray_queue.rays=8",
+        "cycle-fps-by-mode-phantom-sphere-64-ray_queue.rays=4",
+        "cycle-fps-by-mode-phantom-sphere-64-ray_queue.rays=8",
         // Its own x axis: one chart, not split by it; the constant selection splits nothing.
         "cycle-fps-vs-ray_queue.rays-phantom-sphere-64",
         // The map does not depend on the rays: one chart.
@@ -293,6 +295,83 @@ fn what_a_mode_adds_to_its_map_is_a_series_of_its_own() {
         assert!(labels.contains(name), "{name} in {text}");
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The bar chart of every mode: the modes in the tables' column order, a bar per transfer
+/// function with its frame rate, the fastest of each marked (both when tied), no chart where
+/// there is one mode only.
+#[test]
+fn every_mode_side_by_side_with_the_fastest_marked() {
+    let dir = scratch("by-mode");
+    let mut lines = Vec::new();
+    // Deliberately not in column order; distance volumes after maps, leap values last.
+    let modes = [
+        ("ert+leapvalues", 150.0, 140.0),
+        ("ert+distance8", 420.0, 300.0),
+        ("ert+leap8+hier", 410.0, 300.0),
+        ("none", 100.0, 100.0),
+        ("ert", 110.0, 105.0),
+        ("ert+leap8", 380.0, 250.0),
+    ];
+    for (mode, class, zero) in modes {
+        for (tf, fps) in [("class", class), ("zero", zero)] {
+            let mut l = line(mode, 0, json!({}), fps, 40.0);
+            l["tf"] = json!(tf);
+            lines.push(l);
+        }
+    }
+    vizsim::figures::write_all(&lines, &dir).unwrap();
+    let text = svg(&dir, "cycle-fps-by-mode-phantom-sphere-64");
+    // Each text element's height on the canvas and its words.
+    let placed: Vec<(f64, String)> = text
+        .split("<text")
+        .skip(1)
+        .filter_map(|element| {
+            let y = element
+                .split("y=\"")
+                .nth(1)?
+                .split('"')
+                .next()?
+                .parse()
+                .ok()?;
+            let words = element.split_once('>')?.1.split("</text>").next()?;
+            Some((y, words.trim().replace("&apos;", "'")))
+        })
+        .collect();
+    let texts: Vec<&str> = placed.iter().map(|(_, t)| t.as_str()).collect();
+    let height = |label: &str| {
+        placed
+            .iter()
+            .find(|(_, t)| t == label)
+            .unwrap_or_else(|| panic!("no {label} in {texts:?}"))
+            .0
+    };
+    // Top to bottom in the tables' column order.
+    let heights: Vec<f64> = ["none", "ERT", "8³", "8³+h", "dist8", "LV"]
+        .into_iter()
+        .map(height)
+        .collect();
+    assert!(heights.windows(2).all(|w| w[0] < w[1]), "{placed:?}");
+    // The values at the bars' ends, three significant digits; class's fastest is the distance
+    // volume, '0''s a tie of the distance volume and the hierarchy.
+    assert!(texts.contains(&"420 fastest"), "{texts:?}");
+    assert!(texts.contains(&"410"), "{texts:?}");
+    assert_eq!(
+        texts.iter().filter(|t| **t == "300 fastest").count(),
+        2,
+        "{texts:?}"
+    );
+    assert!(texts.contains(&"'0'") && texts.contains(&"class"));
+    // One mode: nothing to compare.
+    let one = scratch("by-mode-one");
+    vizsim::figures::write_all(&[line("ert+leap8", 0, json!({}), 300.0, 40.0)], &one).unwrap();
+    assert!(
+        !charts(&one).iter().any(|n| n.contains("by-mode")),
+        "{:?}",
+        charts(&one)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_dir_all(&one);
 }
 
 #[test]

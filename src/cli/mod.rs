@@ -90,7 +90,8 @@ enum Command {
     /// the acceleration modes, cells averaged over the frames.
     Table(results::TableArgs),
     /// Charts of a sweep's results (PNG + SVG): cycles or steps per frame against the frame,
-    /// skippable sub-cubes and frame rate against the sub-cube size, swept fields.
+    /// frame rate by mode (the fastest marked), skippable sub-cubes and frame rate against the
+    /// sub-cube size, swept fields.
     Plot(results::PlotArgs),
     /// Predict the frame rate of every leaping configuration (map sizes, hierarchy, distance
     /// volume, leap values) from the functional model and a cost model, and recommend the
