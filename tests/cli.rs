@@ -1153,6 +1153,110 @@ fn outputs_that_would_overwrite_an_input_or_each_other_are_refused() {
     ]);
 }
 
+/// The volume file a dataset descriptor or a detached NRRD header names is an input too: an
+/// output on it is refused and the file stays (a review overwrote it with `--json`, `--rays`,
+/// `--vcd` and `--command-trace` while the descriptor itself was protected).
+#[test]
+fn the_data_file_behind_a_descriptor_or_header_is_an_input() {
+    let dir = scratch("data-file");
+    let data = dir.join("v.raw");
+    let voxels: Vec<u8> = (0..16 * 16 * 16).map(|i| (i * 7 % 251) as u8).collect();
+    std::fs::write(&data, &voxels).unwrap();
+    std::fs::write(
+        dir.join("d.toml"),
+        "file = \"v.raw\"\ndims = [16, 16, 16]\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("h.nhdr"),
+        "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 16 16 16\nencoding: raw\ndata file: v.raw\n\n",
+    )
+    .unwrap();
+    // A descriptor naming the header: two links from the dataset to the data.
+    std::fs::write(dir.join("dh.toml"), "file = \"h.nhdr\"\n").unwrap();
+    let png = dir.join("r.png");
+    let (data_, png_) = (data.to_str().unwrap(), png.to_str().unwrap());
+    for (command, dataset, option) in [
+        ("render", "d.toml", "--json"),
+        ("render", "d.toml", "--rays"),
+        ("sim", "h.nhdr", "--json"),
+        ("sim", "dh.toml", "--vcd"),
+        ("sim", "dh.toml", "--command-trace"),
+    ] {
+        let dataset = dir.join(dataset);
+        assert_fails(
+            &[
+                command,
+                "--dataset",
+                dataset.to_str().unwrap(),
+                "--tf",
+                "zero",
+                "--size",
+                "8x8",
+                "-o",
+                png_,
+                option,
+                data_,
+            ],
+            &[option, "is the input", "v.raw"],
+            &png,
+        );
+        assert_eq!(std::fs::read(&data).unwrap(), voxels, "{command} {option}");
+    }
+    // The header behind the descriptor is protected as well, and the dataset still renders.
+    let header = dir.join("h.nhdr");
+    let dh = dir.join("dh.toml");
+    assert_fails(
+        &[
+            "sim",
+            "--dataset",
+            dh.to_str().unwrap(),
+            "--tf",
+            "zero",
+            "--size",
+            "8x8",
+            "--json",
+            header.to_str().unwrap(),
+        ],
+        &["--json", "is the input"],
+        &png,
+    );
+    succeeds(&[
+        "render",
+        "--dataset",
+        dh.to_str().unwrap(),
+        "--tf",
+        "zero",
+        "--size",
+        "8x8",
+        "-o",
+        png_,
+    ]);
+}
+
+/// `-` is standard output for `--json` only; as the per-ray CSV's name it made a file called `-`.
+#[test]
+fn rays_to_standard_output_are_refused_not_written_to_a_file_named_dash() {
+    let dir = scratch("rays-dash");
+    let png = dir.join("r.png");
+    assert_fails(
+        &[
+            "render",
+            "--dataset",
+            "phantom:sphere:16",
+            "--size",
+            "8x8",
+            "-o",
+            png.to_str().unwrap(),
+            "--rays",
+            "-",
+        ],
+        &["--rays -", "only `--json -`"],
+        &png,
+    );
+    assert!(!Path::new(env!("CARGO_MANIFEST_DIR")).join("-").exists());
+}
+
 /// The fixed-point model's per-ray CSV says where each ray enters and leaves the volume, as the
 /// float reference's does (it wrote 0 and 0 for every ray: found by probing).
 #[test]

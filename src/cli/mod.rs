@@ -311,9 +311,13 @@ impl FrameArgs {
             .ok()
             .flatten()
             .and_then(|dir| dataset::file_of(&self.dataset, &dir));
-        [PathBuf::from(&self.dataset), PathBuf::from(&self.tf)]
-            .into_iter()
+        // With the data file a descriptor or detached NRRD header names (a probe overwrote
+        // it with --json while the header was protected).
+        let dataset_files = std::iter::once(PathBuf::from(&self.dataset))
             .chain(dataset_file)
+            .flat_map(|file| dataset::files_read(&file));
+        dataset_files
+            .chain(Some(PathBuf::from(&self.tf)))
             .chain(camera_path)
             .chain(hardware.config.clone())
             .chain(Some(PathBuf::from(&run.hardware.geometry.file)))
@@ -565,6 +569,17 @@ pub fn say(json: Option<&std::path::Path>, text: &str) {
     } else {
         print!("{text}");
     }
+}
+
+/// Refuses `-` for file outputs other than the JSON (`--vcd -`, `--rays -`): only `--json -`
+/// goes to standard output, and `-` must not become a file of that name.
+pub fn refuse_standard_output(outputs: &[(&str, Option<&std::path::Path>)]) -> Result<()> {
+    for (option, path) in outputs {
+        if path.is_some_and(vizsim::output::is_standard_output) {
+            anyhow::bail!("{option} -: only `--json -` writes to standard output; name a file");
+        }
+    }
+    Ok(())
 }
 
 /// `--check-bound` (render, sim): refused before anything runs when the run is outside the

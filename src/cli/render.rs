@@ -72,6 +72,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let inputs: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
     vizsim::output::check_distinct(&inputs, &outputs)?;
     vizsim::output::check_png_name("--output", &args.output)?;
+    super::refuse_standard_output(&[("--rays", args.rays.as_deref())])?;
     for path in [Some(&args.output), args.rays.as_ref(), args.json.as_ref()]
         .into_iter()
         .flatten()

@@ -104,17 +104,10 @@ pub fn run(args: SimArgs) -> Result<()> {
     if let Some(path) = &args.output {
         vizsim::output::check_png_name("--output", path)?;
     }
-    for (option, path) in [
-        ("--vcd", &args.vcd),
-        ("--command-trace", &args.command_trace),
-    ] {
-        if path
-            .as_deref()
-            .is_some_and(vizsim::output::is_standard_output)
-        {
-            anyhow::bail!("{option} -: only `--json -` writes to standard output; name a file");
-        }
-    }
+    super::refuse_standard_output(&[
+        ("--vcd", args.vcd.as_deref()),
+        ("--command-trace", args.command_trace.as_deref()),
+    ])?;
     for path in [&args.output, &args.json].into_iter().flatten() {
         vizsim::output::check_writable(path)?;
     }

@@ -275,6 +275,30 @@ pub fn file_of(spec: &str, data_dir: &Path) -> Option<PathBuf> {
         .map(|e| e.path)
 }
 
+/// Every file loading the volume file `path` reads: the file itself, and the data file a
+/// descriptor or detached NRRD header names (and that one's, a descriptor naming a `.nhdr`).
+/// For `output::check_distinct`: writing any of them would destroy the dataset.
+pub fn files_read(path: &Path) -> Vec<PathBuf> {
+    let mut files = vec![path.to_path_buf()];
+    // A descriptor names a raw or NRRD file, a header at most a payload: two links at most.
+    for _ in 0..2 {
+        let last = files.last().expect("starts with one");
+        let name = last.to_string_lossy();
+        let next = if name.ends_with(".toml") {
+            descriptor::data_file_of(last)
+        } else if name.ends_with(".nhdr") || name.ends_with(".nrrd") {
+            nrrd::data_file_of(last)
+        } else {
+            None
+        };
+        match next {
+            Some(next) if !files.contains(&next) => files.push(next),
+            _ => break,
+        }
+    }
+    files
+}
+
 /// The dimensions and voxel width of a raw or NRRD volume file, from its name or header alone
 /// (None for another kind of file: it is known only once loaded).
 pub fn describe_file(path: &Path) -> Result<Option<([usize; 3], u8)>> {

@@ -32,6 +32,13 @@ struct Descriptor {
     endian: Option<String>,
 }
 
+/// The file a dataset descriptor names, if the descriptor reads (relative to its folder).
+pub fn data_file_of(path: &Path) -> Option<std::path::PathBuf> {
+    let text = crate::input::read_text(path).ok()?;
+    let desc: Descriptor = toml::from_str(&text).ok()?;
+    Some(path.parent().unwrap_or(Path::new("")).join(desc.file))
+}
+
 /// Reads a dataset descriptor TOML (unknown fields rejected) and the raw or NRRD file it names,
 /// relative to the descriptor's folder.
 pub fn load_descriptor(path: &Path) -> Result<Volume> {

@@ -66,6 +66,14 @@ pub fn describe_nrrd(path: &Path) -> Result<([usize; 3], u8)> {
     Ok((layout.dims, layout.bits))
 }
 
+/// The detached payload file a NRRD header names (`data file:`), if any and readable.
+pub fn data_file_of(path: &Path) -> Option<std::path::PathBuf> {
+    let file = crate::input::open_regular(path).ok()?;
+    let header = read_header(&mut BufReader::new(file), path).ok()?;
+    let data_file = header.fields.get("data file")?;
+    Some(path.parent().unwrap_or(Path::new("")).join(data_file))
+}
+
 /// The header fields that matter for the layout, by canonical name (`data file`, ...).
 struct Header {
     fields: BTreeMap<&'static str, String>,
