@@ -1306,7 +1306,7 @@ fn a_killed_merge_leaves_nothing_torn_and_reruns_to_the_same_bytes() {
         for i in (s..RUNS).step_by(3).chain([0]) {
             let key = format!("{:016x}", (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
             results.push_str(&format!(
-                "{{\"key\":\"{key}\",\"experiment\":\"big\",\"frame\":{i},\"fps\":{}.5,\"pad\":\"{}\"}}\n",
+                "{{\"key\":\"{key}\",\"experiment\":\"big\",\"model\":\"step\",\"mode\":\"none\",\"tf\":\"zero\",\"dataset\":\"d\",\"frame\":{i},\"steps\":1,\"fps\":{}.5,\"pad\":\"{}\"}}\n",
                 i % 997,
                 "x".repeat(120)
             ));
@@ -2339,4 +2339,94 @@ fn a_sweep_names_the_axes_its_runs_do_not_read() {
         "--dry-run",
     ]);
     assert!(!plan.contains("note:"), "{plan}");
+}
+
+/// A result line without a field every result has (an edited file) is an error naming the line
+/// and the field, for `table`, `plot` and the sweep's resume alike: the resume counted it as
+/// done, so the run was never redone, and the tables left it out without a word.
+#[test]
+fn a_result_line_without_its_figures_is_an_error_not_a_run_done() {
+    let dir = temp_dir("missing-field");
+    let (exp, out) = swept(&dir, &step_only());
+    let results = out.join("results.jsonl");
+    let good = std::fs::read_to_string(&results).unwrap();
+    let (exp_, out_) = (exp.to_str().unwrap(), out.to_str().unwrap());
+    let table = |to: &str| {
+        [
+            "table",
+            out_,
+            "--rows",
+            "dataset,tf,mode",
+            "--columns",
+            "ray_queue.rays",
+            "--out",
+            dir.join(to).to_str().unwrap(),
+        ]
+        .map(str::to_string)
+    };
+    let table_t = table("t");
+    let table_t: Vec<&str> = table_t.iter().map(String::as_str).collect();
+    for (field, replacement, says) in [
+        ("steps", None, "`steps` is missing"),
+        ("fps", None, "`fps` is missing"),
+        ("mode", None, "`mode` is missing"),
+        (
+            "steps",
+            Some(serde_json::json!("many")),
+            "`steps` is \"many\", not a number",
+        ),
+    ] {
+        let mut lines: Vec<String> = good.lines().map(str::to_string).collect();
+        let mut first: serde_json::Value = serde_json::from_str(&lines[1]).unwrap();
+        let key = first["key"].as_str().unwrap().to_string();
+        match &replacement {
+            None => {
+                first.as_object_mut().unwrap().remove(field);
+            }
+            Some(v) => first[field] = v.clone(),
+        }
+        lines[1] = first.to_string();
+        std::fs::write(&results, lines.join("\n") + "\n").unwrap();
+        let expected = format!("line 2, run {key}: {says}");
+        vizsim_fails(&["sweep", exp_, "--out", out_, "--quiet"], &expected);
+        vizsim_fails(&table_t, &expected);
+        vizsim_fails(
+            &["plot", out_, "--out", dir.join("p").to_str().unwrap()],
+            &expected,
+        );
+        assert!(!dir.join("t").exists() && !dir.join("p").exists());
+    }
+    // The intact file reads.
+    std::fs::write(&results, &good).unwrap();
+    vizsim_ok(&table_t);
+}
+
+/// `--model` naming a model the experiment does not run is an error, and makes no folder (it
+/// swept nothing and left an empty results file).
+#[test]
+fn a_model_the_experiment_does_not_run_is_refused() {
+    let dir = temp_dir("absent-model");
+    let exp = write_experiment(&dir, &step_only());
+    let out = dir.join("out");
+    vizsim_fails(
+        &[
+            "sweep",
+            exp.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--model",
+            "cycle",
+        ],
+        "--model cycle: ",
+    );
+    assert!(!out.exists());
+    vizsim_ok(&[
+        "sweep",
+        exp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--model",
+        "step",
+        "--quiet",
+    ]);
 }

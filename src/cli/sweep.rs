@@ -54,6 +54,7 @@ pub fn run(args: SweepArgs) -> Result<()> {
     // needs them all.
     let plan = spec::load_plan(experiment, dir.as_deref())?;
     let name = plan.experiment.name.clone();
+    let plan_models = plan.experiment.models.clone();
     experiment::store::ResultStore::check_same_experiment(out, &name)?;
     let done = experiment::store::result_keys(&out.join(experiment::store::RESULTS))?;
     let mut tally = Tally::default();
@@ -63,7 +64,11 @@ pub fn run(args: SweepArgs) -> Result<()> {
         if done.contains(&r.key) {
             still_runs.insert(r.key.clone());
         }
-        if model.is_some_and(|m| r.run.model.name() != m) || shard.is_some_and(|s| !s.contains(r)) {
+        if model.is_some_and(|m| r.run.model.name() != m) {
+            return;
+        }
+        tally.of_model += 1;
+        if shard.is_some_and(|s| !s.contains(r)) {
             return;
         }
         tally.mine += 1;
@@ -102,6 +107,13 @@ pub fn run(args: SweepArgs) -> Result<()> {
     experiment::store::ResultStore::check_results_are_runs(out, &done, |key| {
         still_runs.contains(key)
     })?;
+    if let Some(model) = model.filter(|_| tally.of_model == 0) {
+        anyhow::bail!(
+            "--model {model}: {} has no {model}-model runs (its `models` are {:?})",
+            experiment.display(),
+            plan_models
+        );
+    }
     // A folder another sweep writes into, or one that cannot be written, is refused before the
     // plan is printed; the lock is held from here to the sweep's end.
     let lock = if dry_run {
@@ -195,6 +207,8 @@ pub fn run(args: SweepArgs) -> Result<()> {
 #[derive(Default)]
 struct Tally {
     mine: usize,
+    /// Runs of the model `--model` names (every run without it), in any shard.
+    of_model: usize,
     pending: [usize; 2],
     seconds: [f64; 2],
     raised: usize,

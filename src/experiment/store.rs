@@ -110,6 +110,9 @@ fn stream_keys(path: &Path) -> Result<(HashSet<String>, BTreeSet<String>)> {
                 format!("line {number} is not a result line (corrupt file?)"),
             ));
         };
+        if let Some(field) = parsed.as_ref().and_then(missing_field) {
+            return Err(Error::format(path, incomplete_run(number, &key, &field)));
+        }
         if let Some(name) = parsed.as_ref().and_then(|v| v["experiment"].as_str()) {
             if !experiments.contains(name) {
                 experiments.insert(name.to_string());
@@ -167,6 +170,44 @@ fn repeated_run(number: usize, key: &str, first: usize) -> String {
 /// A parsed result line and its text.
 type Line = (Value, String);
 
+/// The first field a result line lacks of those every sweep writes (what the run is, and the
+/// model's figures), or holds as the wrong kind of value; a figure may be null (no figure). A
+/// line without them (an edited file) would be tabulated as missing and, counted as done,
+/// never be redone.
+fn missing_field(line: &Value) -> Option<String> {
+    let count = if line["model"] == "step" {
+        "steps"
+    } else {
+        "cycles"
+    };
+    // (field, whether a value fits, what it must be)
+    type Rule<'a> = (&'a str, fn(&Value) -> bool, &'a str);
+    let required: [Rule; 7] = [
+        ("model", Value::is_string, "text"),
+        ("mode", Value::is_string, "text"),
+        ("tf", Value::is_string, "text"),
+        ("dataset", Value::is_string, "text"),
+        ("frame", Value::is_number, "a number"),
+        ("fps", |v| v.is_number() || v.is_null(), "a number"),
+        (count, |v| v.is_number() || v.is_null(), "a number"),
+    ];
+    required
+        .into_iter()
+        .find_map(|(field, fits, kind)| match line.get(field) {
+            None => Some(format!("`{field}` is missing")),
+            Some(v) if !fits(v) => Some(format!("`{field}` is {v}, not {kind}")),
+            Some(_) => None,
+        })
+}
+
+/// The error of a result line that lacks a field every result has.
+fn incomplete_run(number: usize, key: &str, what: &str) -> String {
+    format!(
+        "line {number}, run {key}: {what} (every result line has it; an edited file?); remove \
+         the line to have the sweep run it again"
+    )
+}
+
 /// Whether a line that is not a result can be what a write cut short left: blank, or the start
 /// of a JSON object that does not parse (a result line cut anywhere before its end). A line
 /// that parses, or does not start as an object, was written as it is.
@@ -203,6 +244,9 @@ fn scan(path: &Path) -> Result<(Vec<Line>, u64, bool)> {
         match (parsed, end) {
             (Some((v, t)), Some(_)) => {
                 let key = v["key"].as_str().unwrap_or_default().to_string();
+                if let Some(field) = missing_field(&v) {
+                    return Err(Error::format(path, incomplete_run(number, &key, &field)));
+                }
                 match first_line.get(&key) {
                     Some(&(_, at)) if lines[at].1 == t => {}
                     Some(&(first, _)) => {
