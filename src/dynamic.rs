@@ -19,6 +19,20 @@ use std::path::{Path, PathBuf};
 
 /// The regions of `after` that differ from `before`: one region per `brick`³ brick (clipped to
 /// the volume) holding any changed voxel, in brick order: a partial update of one time step.
+/// A partial update's brick edge: at least 1, at most the volume's longest edge (a larger brick
+/// is the same one brick, and a figure no update sends).
+pub fn check_brick(brick: usize, dims: [usize; 3]) -> Result<()> {
+    let longest = dims.into_iter().max().unwrap_or(1);
+    if brick == 0 || brick > longest {
+        return Err(Error::Invalid(format!(
+            "brick size {brick}: out of range 1..={longest} (the volume is {}×{}×{}; one brick \
+             of {longest} covers it)",
+            dims[0], dims[1], dims[2]
+        )));
+    }
+    Ok(())
+}
+
 pub fn changed_bricks(before: &Volume, after: &Volume, brick: usize) -> Result<VolumeUpdate> {
     if before.dims != after.dims {
         return Err(Error::Invalid(format!(
@@ -33,9 +47,7 @@ pub fn changed_bricks(before: &Volume, after: &Volume, brick: usize) -> Result<V
             after.bits, before.bits
         )));
     }
-    if brick == 0 {
-        return Err(Error::Invalid("brick size 0: must be at least 1".into()));
-    }
+    check_brick(brick, after.dims)?;
     let d = after.dims;
     let mut regions = Vec::new();
     for bz in (0..d[2]).step_by(brick) {
@@ -585,7 +597,12 @@ impl Sequence {
             }
         };
         let update = match (&self.current, &touched) {
-            (None, _) => VolumeUpdate::full_tiled(&volume, memory),
+            (None, _) => {
+                // Checked at the first step, where the extent is known (the experiment's
+                // validation takes it), not after a step has run.
+                check_brick(self.brick, volume.dims)?;
+                VolumeUpdate::full_tiled(&volume, memory)
+            }
             (Some(_), Some(voxels)) => touched_bricks(&volume, voxels, self.brick),
             (Some(before), None) => changed_bricks(before, &volume, self.brick)?,
         };

@@ -846,3 +846,31 @@ fn brick_flags_from_the_table_equal_the_bricks_built_from_the_volume() {
         compare(&ours, &exact, false, "widened");
     }
 }
+
+/// A partial update's brick edge runs from 1 to the volume's longest edge, in `update` and in
+/// sequences alike: a review's `--brick 99999999999` was accepted and printed as the update's
+/// brick, which no hardware sends.
+#[test]
+fn a_brick_larger_than_the_volume_is_refused() {
+    let a = metaballs(16, 0.0);
+    let b = metaballs(16, 0.3);
+    assert!(vizsim::dynamic::changed_bricks(&a, &b, 16).is_ok());
+    for brick in [0, 17, 99_999_999_999] {
+        let e = vizsim::dynamic::changed_bricks(&a, &b, brick)
+            .expect_err("accepted")
+            .to_string();
+        assert!(
+            e.contains(&format!("brick size {brick}")) && e.contains("1..=16"),
+            "{e}"
+        );
+    }
+    let memory = HardwareConfig::default_config().memory;
+    let mut sequence = vizsim::dynamic::Sequence::open("phantom:metaballs:16", 2, 0.1, 17).unwrap();
+    let e = match sequence.next_step(&memory) {
+        Ok(_) => panic!("a 17³ brick accepted on a 16³ volume"),
+        Err(e) => e.to_string(),
+    };
+    assert!(e.contains("brick size 17") && e.contains("1..=16"), "{e}");
+    let mut sequence = vizsim::dynamic::Sequence::open("phantom:metaballs:16", 2, 0.1, 16).unwrap();
+    assert!(sequence.next_step(&memory).unwrap().is_some());
+}

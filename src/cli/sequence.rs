@@ -29,7 +29,7 @@ pub struct SequenceArgs {
     /// Metaballs: time between steps.
     #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
     dt: f32,
-    /// Edge of the bricks a partial update sends.
+    /// Edge of the bricks a partial update sends (1 up to the volume's longest edge).
     #[arg(
         long,
         default_value_t = 8,

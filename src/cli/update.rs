@@ -22,7 +22,7 @@ pub struct UpdateArgs {
     /// bricks), with widened and with rescanned maps.
     #[arg(long)]
     next: Option<String>,
-    /// Brick edge of the partial update's regions.
+    /// Brick edge of the partial update's regions (1 up to the volume's longest edge).
     #[arg(
         long,
         default_value_t = 8,
