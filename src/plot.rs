@@ -641,6 +641,14 @@ fn write_chart(chart: &impl Chart, stem: &Path) -> Result<()> {
     // (hidden, with this process's id, so a later run removes what a kill left behind).
     let tmp_png = crate::output::temporary_path_keeping_extension(&png)?;
     let tmp_svg = crate::output::temporary_path_keeping_extension(&svg)?;
+    // Made here first, so that a folder that cannot be written is an error naming the file,
+    // not the drawing backend's debug text.
+    for (tmp, real) in [(&tmp_png, &png), (&tmp_svg, &svg)] {
+        if let Err(e) = std::fs::File::create(tmp) {
+            let _ = std::fs::remove_file(&tmp_png);
+            return Err(Error::io(real, e));
+        }
+    }
     let result = (|| -> std::result::Result<(), String> {
         chart.draw(
             BitMapBackend::new(&tmp_png, layout.size).into_drawing_area(),

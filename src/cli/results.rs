@@ -75,8 +75,8 @@ pub fn plot(args: PlotArgs) -> Result<()> {
     if written == 0 {
         // Said, not "0 charts -> DIR" for a folder that was never made.
         vizsim::note!(
-            "no chart to draw: a per-frame chart needs two frames or more, the others leaping \
-             modes or a swept field; nothing written"
+            "no chart to draw: a per-frame chart needs two frames or more, the frame rate by \
+             mode two modes, the others leaping modes or a swept field; nothing written"
         );
     } else {
         println!(
