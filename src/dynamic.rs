@@ -384,6 +384,11 @@ fn check_maps(
 /// Largest number of time steps of a sequence.
 pub const MAX_STEPS: usize = 10_000;
 
+/// The metaballs' time between steps and a partial update's brick edge, when not given
+/// (`vizsim sequence`, `vizsim update` and an experiment's `[sequence]` alike).
+pub const DEFAULT_DT: f32 = 0.05;
+pub const DEFAULT_BRICK: usize = 8;
+
 /// Where the time steps come from.
 enum Source {
     /// `phantom:metaballs…` at t0, t0 + dt, t0 + 2·dt, …

@@ -2749,3 +2749,47 @@ fn json_to_standard_output_with_the_text_on_standard_error() {
         );
     }
 }
+
+/// Options a dynamic command takes but would not use are named, not silently dropped:
+/// `update --brick` without `--next`, `sequence --dt` on a source with no time step.
+#[test]
+fn dynamic_options_without_effect_are_noted() {
+    let update = succeeds(&[
+        "update",
+        "phantom:sphere:32",
+        "--subcube",
+        "8",
+        "--brick",
+        "3",
+    ]);
+    let stderr = String::from_utf8_lossy(&update.stderr);
+    assert!(
+        stderr.contains("--brick is without effect without --next"),
+        "{stderr}"
+    );
+    let plain = succeeds(&["update", "phantom:sphere:32", "--subcube", "8"]);
+    assert!(!String::from_utf8_lossy(&plain.stderr).contains("--brick"));
+    let sequence = |extra: &[&str]| {
+        let mut args = vec![
+            "sequence",
+            "--source",
+            "phantom:tsdf:32",
+            "--subcube",
+            "4",
+            "--size",
+            "8x8",
+            "--steps",
+            "2",
+        ];
+        args.extend_from_slice(extra);
+        succeeds(&args)
+    };
+    let noted = sequence(&["--dt", "5"]);
+    let stderr = String::from_utf8_lossy(&noted.stderr);
+    assert!(
+        stderr.contains("--dt is without effect on phantom:tsdf:32"),
+        "{stderr}"
+    );
+    // The figures are the same with and without it: it is truly unread.
+    assert_eq!(noted.stdout, sequence(&[]).stdout);
+}

@@ -26,13 +26,14 @@ pub struct SequenceArgs {
         value_parser = super::unsigned::<usize>,
     )]
     steps: usize,
-    /// Metaballs: time between steps.
-    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
-    dt: f32,
+    /// Metaballs: time between steps (default 0.05). The TSDF phantom moves one unit per step,
+    /// and a folder's steps are its files.
+    #[arg(long, allow_negative_numbers = true)]
+    dt: Option<f32>,
     /// Edge of the bricks a partial update sends (1 up to the volume's longest edge).
     #[arg(
         long,
-        default_value_t = 8,
+        default_value_t = vizsim::dynamic::DEFAULT_BRICK,
         allow_negative_numbers = true,
         value_parser = super::unsigned::<usize>,
     )]
@@ -99,9 +100,15 @@ pub fn run(args: SequenceArgs) -> Result<()> {
             )
         );
     }
+    if args.dt.is_some() && !args.source.starts_with("phantom:metaballs") {
+        vizsim::note!(
+            "note: --dt is without effect on {} (only phantom:metaballs takes a time step)",
+            args.source
+        );
+    }
     let options = SequenceOptions {
         steps: args.steps,
-        dt: args.dt,
+        dt: args.dt.unwrap_or(vizsim::dynamic::DEFAULT_DT),
         brick: args.brick,
         map: args.map,
         verify: args.verify,

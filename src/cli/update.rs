@@ -22,14 +22,14 @@ pub struct UpdateArgs {
     /// bricks), with widened and with rescanned maps.
     #[arg(long)]
     next: Option<String>,
-    /// Brick edge of the partial update's regions (1 up to the volume's longest edge).
+    /// Brick edge of the partial update's regions (1 up to the volume's longest edge; default
+    /// 8). Only with --next.
     #[arg(
         long,
-        default_value_t = 8,
         allow_negative_numbers = true,
         value_parser = super::unsigned::<usize>,
     )]
-    brick: usize,
+    brick: Option<usize>,
     #[command(flatten)]
     hardware: HardwareArgs,
     /// Print JSON instead of text.
@@ -39,10 +39,13 @@ pub struct UpdateArgs {
 
 pub fn run(args: UpdateArgs) -> Result<()> {
     use vizsim::functional::arith::ClassificationTable;
-    anyhow::ensure!(
-        args.brick >= 1,
-        "--brick 0: the brick edge must be at least 1"
-    );
+    let brick = args.brick.unwrap_or(vizsim::dynamic::DEFAULT_BRICK);
+    anyhow::ensure!(brick >= 1, "--brick 0: the brick edge must be at least 1");
+    if args.brick.is_some() && args.next.is_none() {
+        vizsim::note!(
+            "note: --brick is without effect without --next (it sizes a partial update's regions)"
+        );
+    }
     anyhow::ensure!(
         args.hardware.occupancy.is_none(),
         "--occupancy: update measures both maps ('0' and class; its cycles do not depend on the \
@@ -99,7 +102,7 @@ pub fn run(args: UpdateArgs) -> Result<()> {
         &volume,
         &table,
         subcube,
-        next.as_ref().map(|v| (v, args.brick)),
+        next.as_ref().map(|v| (v, brick)),
     )?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);

@@ -91,10 +91,10 @@ pub struct SequenceAxis {
 }
 
 fn default_dt() -> f64 {
-    0.05
+    crate::dynamic::DEFAULT_DT as f64
 }
 fn default_brick() -> usize {
-    8
+    crate::dynamic::DEFAULT_BRICK
 }
 fn default_maps() -> Vec<String> {
     vec!["update".into(), "scan".into(), "none".into()]
