@@ -253,6 +253,15 @@ impl CameraPath {
             )));
         }
         let dir = dir.normalize();
+        // Two keys whose up vectors point opposite ways interpolate to zero between them.
+        if up.length() < 1e-6 {
+            let i = u.floor() as usize;
+            return Err(bad(format!(
+                "the up vectors of key[{i}] and key[{}] point opposite ways, so up interpolated \
+                 between them is zero here; turn one of them, or add a key between them",
+                i + 1
+            )));
+        }
         let ortho = up - dir * up.dot(dir);
         if ortho.length() < 1e-3 * up.length() || !ortho.is_finite() {
             return Err(bad(format!(

@@ -354,6 +354,15 @@ fn bad_paths_give_clear_errors() {
     let text = format!("interpolation = \"linear\"\n{first}{turn}");
     let e = err("parallel-frame.toml", &text, "1/3");
     assert!(e.contains("frame 1 of 3") && e.contains("parallel"), "{e}");
+    // Opposite up vectors: zero half way between them (it read "up [NaN, NaN, NaN] is
+    // parallel to the view direction").
+    let down = key("[0.0, -1.0, 0.0]", "[0.0, 1.0, 0.0]", "[0.0, 0.0, -1.0]");
+    let text = format!("interpolation = \"linear\"\n{good}{down}");
+    let e = err("opposite-up.toml", &text, "1/3");
+    assert!(
+        e.contains("key[0] and key[1] point opposite ways") && !e.contains("NaN"),
+        "{e}"
+    );
     // Eye equals look-at.
     let same = key("[1.0, 1.0, 1.0]", "[1.0, 1.0, 1.0]", "[0.0, 0.0, 1.0]");
     let e = err("same.toml", &format!("{good}{same}"), "0/2");
