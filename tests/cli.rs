@@ -457,6 +457,37 @@ fn negative_numbers_reach_the_options_checks() {
             vec!["advise", "--dataset", "phantom:sphere:16", "--rays", "-64"],
             &["'--rays <RAYS>': must not be negative"][..],
         ),
+        // Text options with a leading minus (clap took `-16x16` for a flag).
+        (
+            vec![
+                "render",
+                "--dataset",
+                "phantom:sphere:16",
+                "--size",
+                "-16x16",
+                "-o",
+                png.to_str().unwrap(),
+            ],
+            &["--size: image size `-16x16`: expected WxH"][..],
+        ),
+        (
+            vec![
+                "precision",
+                "--dataset",
+                "phantom:sphere:16",
+                "--size",
+                "-8x8",
+            ],
+            &["--size: image size `-8x8`"][..],
+        ),
+        (
+            vec!["sweep", "no-such.toml", "--out", "x", "--shard", "-1/2"],
+            &["--shard -1/2: expected I/N"][..],
+        ),
+        (
+            render(&["--memory-budget", "-1G"]),
+            &["`-1G`: expected bytes"][..],
+        ),
     ] {
         assert_fails(&args, needles, &png);
         let stderr = String::from_utf8_lossy(&vizsim(&args).stderr).into_owned();

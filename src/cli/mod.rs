@@ -42,7 +42,7 @@ pub struct Cli {
     #[arg(
         long,
         global = true,
-        allow_negative_numbers = true,
+        allow_hyphen_values = true,
         value_parser = vizsim::budget::parse
     )]
     memory_budget: Option<u64>,
@@ -280,7 +280,7 @@ pub struct FrameArgs {
     #[arg(long, value_enum, default_value = "ortho")]
     pub projection: ProjectionArg,
     /// Image size WxH.
-    #[arg(long, default_value = "256x256")]
+    #[arg(long, default_value = "256x256", allow_hyphen_values = true)]
     pub size: String,
     /// Sample spacing along the ray, in voxels.
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]

@@ -30,7 +30,7 @@ pub struct PrecisionArgs {
     #[arg(long, value_enum, default_value = "ortho")]
     projection: super::ProjectionArg,
     /// Image size WxH.
-    #[arg(long, default_value = "128x128")]
+    #[arg(long, default_value = "128x128", allow_hyphen_values = true)]
     size: String,
     /// Disable early ray termination (the same as --set compositing.ert=false): with ERT the
     /// largest error sits near (1 − threshold) · 255 levels at any width, where one model

@@ -53,7 +53,7 @@ pub struct SequenceArgs {
     #[arg(long, value_enum, default_value = "ortho")]
     projection: super::ProjectionArg,
     /// Image size WxH.
-    #[arg(long, default_value = "256x256")]
+    #[arg(long, default_value = "256x256", allow_hyphen_values = true)]
     size: String,
     /// Render every frame again without leaping and require the same image.
     #[arg(long)]

@@ -18,7 +18,7 @@ pub struct SweepArgs {
     #[arg(long)]
     dry_run: bool,
     /// Run only runs i with i mod N = I (I/N, 0-based): for clusters; `vizsim merge` joins.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     shard: Option<String>,
     /// No progress bar.
     #[arg(long)]
