@@ -1169,7 +1169,14 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("vizsim-torn-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("results.jsonl");
-        let good = "{\"key\":\"a\",\"cycles\":1}\n{\"key\":\"b\",\"cycles\":2}\n";
+        let line = |key: &str, cycles: u32| {
+            format!(
+                "{{\"key\":\"{key}\",\"model\":\"cycle\",\"mode\":\"none\",\"tf\":\"zero\",\
+                 \"dataset\":\"d\",\"frame\":0,\"fps\":1,\"cycles\":{cycles}}}\n"
+            )
+        };
+        let good = line("a", 1) + &line("b", 2);
+        let good = good.as_str();
         for torn in ["{\"key\":\"c\",\"cyc", "{\"key\":\"c\",\"cyc\n"] {
             std::fs::write(&path, format!("{good}{torn}")).unwrap();
             let (lines, left_out) = read_results(&path).unwrap();
@@ -1200,7 +1207,9 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("results.jsonl");
         for metric in Metric::value_variants() {
-            let mut only_inputs = serde_json::json!({"key": "a"});
+            // With what every result line has (`experiment::store` refuses a line without).
+            let mut only_inputs = serde_json::json!({"key": "a", "model": "cycle", "mode": "none",
+                "tf": "zero", "dataset": "d", "frame": 0, "fps": null, "cycles": null});
             for field in metric.inputs() {
                 let mut at = &mut only_inputs;
                 for name in &field[..field.len() - 1] {
