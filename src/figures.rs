@@ -520,10 +520,26 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                         }
                     })
                     .collect();
+                // As in the tables: `*` on a mode whose map needs more than the default SRAM.
+                let raised = |mode: &str| {
+                    facet.lines.iter().any(|l| {
+                        text(l, "mode") == mode && l["fits_default_sram"] == Value::Bool(false)
+                    })
+                };
+                let any_raised = modes.iter().any(|m| raised(m));
+                let value_label = with_note("frames per second", &note)
+                    + if any_raised {
+                        "; * map larger than the default SRAM, run with it raised"
+                    } else {
+                        ""
+                    };
                 BarChart {
                     title: &title,
-                    value_label: &with_note("frames per second", &note),
-                    categories: modes.iter().map(|m| mode_label(m)).collect(),
+                    value_label: &value_label,
+                    categories: modes
+                        .iter()
+                        .map(|m| mode_label(m) + if raised(m) { "*" } else { "" })
+                        .collect(),
                     series,
                     mark_largest: Some("fastest"),
                 }

@@ -317,6 +317,8 @@ fn every_mode_side_by_side_with_the_fastest_marked() {
         for (tf, fps) in [("class", class), ("zero", zero)] {
             let mut l = line(mode, 0, json!({}), fps, 40.0);
             l["tf"] = json!(tf);
+            // The 8³ map with the hierarchy ran with the SRAM raised.
+            l["fits_default_sram"] = json!(mode != "ert+leap8+hier");
             lines.push(l);
         }
     }
@@ -347,7 +349,7 @@ fn every_mode_side_by_side_with_the_fastest_marked() {
             .0
     };
     // Top to bottom in the tables' column order.
-    let heights: Vec<f64> = ["none", "ERT", "8³", "8³+h", "dist8", "LV"]
+    let heights: Vec<f64> = ["none", "ERT", "8³", "8³+h*", "dist8", "LV"]
         .into_iter()
         .map(height)
         .collect();
@@ -362,6 +364,12 @@ fn every_mode_side_by_side_with_the_fastest_marked() {
         "{texts:?}"
     );
     assert!(texts.contains(&"'0'") && texts.contains(&"class"));
+    assert!(
+        texts
+            .iter()
+            .any(|t| t.contains("* map larger than the default SRAM")),
+        "{texts:?}"
+    );
     // One mode: nothing to compare.
     let one = scratch("by-mode-one");
     vizsim::figures::write_all(&[line("ert+leap8", 0, json!({}), 300.0, 40.0)], &one).unwrap();
