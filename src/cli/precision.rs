@@ -20,9 +20,9 @@ pub struct PrecisionArgs {
     /// Transfer function: `zero`, `class` (the dataset's own), a preset name, or a TOML file.
     #[arg(long, default_value = "class")]
     tf: String,
-    /// View: `front`, `orbit:K/N` or `path:FILE:K/N` (a camera path). An oblique view by default: axis-aligned views, and
-    /// angles whose direction happens to be exact in few bits (25° is within 0.1 % of 27/64,
-    /// 58/64), hide increment errors.
+    /// View: `front`, `orbit:K/N` or `path:FILE:K/N` (a camera path). An oblique view by
+    /// default: axis-aligned views, and angles whose direction happens to be exact in few bits
+    /// (25° is within 0.1 % of 27/64, 58/64), hide increment errors.
     #[arg(long, default_value = "orbit:7/72")]
     view: String,
     /// Projection. Perspective rays each round their own increment, so they show ray-to-ray
