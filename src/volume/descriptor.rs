@@ -36,7 +36,12 @@ struct Descriptor {
 pub fn data_file_of(path: &Path) -> Option<std::path::PathBuf> {
     let text = crate::input::read_text(path).ok()?;
     let desc: Descriptor = toml::from_str(&text).ok()?;
-    Some(path.parent().unwrap_or(Path::new("")).join(desc.file))
+    Some(named_file(path, &desc.file))
+}
+
+/// The file a descriptor names, relative to the descriptor's folder.
+fn named_file(descriptor: &Path, file: &str) -> std::path::PathBuf {
+    descriptor.parent().unwrap_or(Path::new("")).join(file)
 }
 
 /// Reads a dataset descriptor TOML (unknown fields rejected) and the raw or NRRD file it names,
@@ -64,7 +69,7 @@ pub fn load_descriptor(path: &Path) -> Result<Volume> {
     if desc.file.trim().is_empty() {
         return Err(config("file", "must not be empty".into()));
     }
-    let data_path = path.parent().unwrap_or(Path::new("")).join(&desc.file);
+    let data_path = named_file(path, &desc.file);
     // Errors of the data file name the descriptor that pointed to it too.
     let in_file = |e: Error| config("file", e.to_string());
     let extension = data_path

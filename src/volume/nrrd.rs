@@ -31,7 +31,7 @@ pub fn load_nrrd(path: &Path) -> Result<Volume> {
 
     let data = match header.fields.get("data file") {
         Some(data_file) => {
-            let data_path = path.parent().unwrap_or(Path::new("")).join(data_file);
+            let data_path = detached_payload(path, data_file);
             // Errors name the header too: the data file alone does not say which volume.
             (|| {
                 let data = crate::input::open_regular(&data_path)?;
@@ -70,8 +70,12 @@ pub fn describe_nrrd(path: &Path) -> Result<([usize; 3], u8)> {
 pub fn data_file_of(path: &Path) -> Option<std::path::PathBuf> {
     let file = crate::input::open_regular(path).ok()?;
     let header = read_header(&mut BufReader::new(file), path).ok()?;
-    let data_file = header.fields.get("data file")?;
-    Some(path.parent().unwrap_or(Path::new("")).join(data_file))
+    Some(detached_payload(path, header.fields.get("data file")?))
+}
+
+/// A header's `data file`, relative to the header's folder.
+fn detached_payload(header: &Path, data_file: &str) -> std::path::PathBuf {
+    header.parent().unwrap_or(Path::new("")).join(data_file)
 }
 
 /// The header fields that matter for the layout, by canonical name (`data file`, ...).
