@@ -1337,15 +1337,15 @@ fn check_range(source: &str, field: &str, value: u64, lo: u64, hi: u64) -> Resul
     Ok(())
 }
 
-/// Applies `a.b.c=value` to a TOML table. The value is read as TOML (`8`, `true`, `0.9`,
-/// `"class"`); a bare word that is not TOML is taken as a string (`kind=class`). The path must
-/// name an existing field, so a typo is an error rather than a silently ignored setting.
 /// The field path an override sets (`occupancy.subcube` of `occupancy.subcube = 8`), as
 /// `apply_override` reads it.
 pub fn override_path(assignment: &str) -> &str {
     assignment.split('=').next().unwrap_or_default().trim()
 }
 
+/// Applies `a.b.c=value` to a TOML table. The value is read as TOML (`8`, `true`, `0.9`,
+/// `"class"`); a bare word that is not TOML is taken as a string (`kind=class`). The path must
+/// name an existing field, so a typo is an error rather than a silently ignored setting.
 pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
     let bad = |msg: &str| Error::config("--set", assignment, msg);
     let (_, raw) = assignment
@@ -1357,6 +1357,19 @@ pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
         .ok()
         .and_then(|mut t| t.remove("v"))
         .unwrap_or_else(|| toml::Value::String(raw.to_string()));
+    // A whole number TOML cannot hold would otherwise reach the field as a string, and be
+    // reported as the wrong type rather than as too large.
+    let digits = raw.strip_prefix(['+', '-']).unwrap_or(raw);
+    if value.is_str()
+        && !digits.is_empty()
+        && digits.chars().all(|c| c.is_ascii_digit() || c == '_')
+    {
+        return Err(Error::config(
+            "--set",
+            path,
+            format!("{raw} is out of range: whole numbers are read as 64-bit integers"),
+        ));
+    }
     let keys: Vec<&str> = path.split('.').collect();
     let (last, parents) = keys.split_last().ok_or_else(|| bad("empty field path"))?;
     let mut current = table;
@@ -1443,6 +1456,29 @@ mod tests {
             }
         }
         fields
+    }
+
+    /// A whole number too large for TOML is named as out of range, not as "invalid type:
+    /// string"; numbers that fit, words and quoted digits are still read as before.
+    #[test]
+    fn an_override_too_large_for_toml_is_out_of_range() {
+        let mut table: toml::Table = DEFAULT_TOML.parse().expect("the embedded default");
+        for raw in [
+            "99999999999999999999",
+            "-99999999999999999999",
+            "10_000_000_000_000_000_000",
+        ] {
+            let e = apply_override(&mut table, &format!("sdram.cl={raw}"))
+                .expect_err(raw)
+                .to_string();
+            assert!(e.contains("sdram.cl") && e.contains("out of range"), "{e}");
+        }
+        apply_override(&mut table, "sdram.cl=3").expect("a number that fits");
+        assert_eq!(table["sdram"]["cl"].as_integer(), Some(3));
+        apply_override(&mut table, "memory.row_policy=close").expect("a bare word");
+        assert_eq!(table["memory"]["row_policy"].as_str(), Some("close"));
+        apply_override(&mut table, "memory.row_policy=\"42\"").expect("quoted digits");
+        assert_eq!(table["memory"]["row_policy"].as_str(), Some("42"));
     }
 
     /// Every field `--set` can set on the default configuration has its row in
