@@ -51,15 +51,30 @@ pub const RECIPROCAL_BITS: std::ops::RangeInclusive<u32> = 2..=32;
 
 /// A configuration value of the skip calculator outside its allowed range.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("skip calculator: `{field}` = {value} is outside its allowed range {min}..={max}")]
+#[error(
+    "skip calculator: `{field}` = {value} is outside its allowed range {min}..={max}{}",
+    max_set_by.map(|f| format!(", at most `{f}`")).unwrap_or_default()
+)]
 pub struct SkipConfigError {
     pub field: &'static str,
     pub value: u64,
     pub min: u64,
     pub max: u64,
+    /// The field whose value is `max`, when the bound is not a constant.
+    pub max_set_by: Option<&'static str>,
 }
 
 fn check_range(field: &'static str, value: u64, min: u64, max: u64) -> Result<(), SkipConfigError> {
+    check_range_up_to(field, value, min, max, None)
+}
+
+fn check_range_up_to(
+    field: &'static str,
+    value: u64,
+    min: u64,
+    max: u64,
+    max_set_by: Option<&'static str>,
+) -> Result<(), SkipConfigError> {
     if (min..=max).contains(&value) {
         Ok(())
     } else {
@@ -68,6 +83,7 @@ fn check_range(field: &'static str, value: u64, min: u64, max: u64) -> Result<()
             value,
             min,
             max,
+            max_set_by,
         })
     }
 }
@@ -107,14 +123,27 @@ impl SkipWidths {
     pub fn validate(&self) -> Result<(), SkipConfigError> {
         let pos = u64::from(self.pos_frac_bits);
         check_range("pos_frac_bits", pos, 0, MAX_POS_FRAC_BITS.into())?;
-        check_range("inc_frac_bits", self.inc_frac_bits.into(), 0, pos)?;
+        let up_to_pos = Some("pos_frac_bits");
+        check_range_up_to(
+            "inc_frac_bits",
+            self.inc_frac_bits.into(),
+            0,
+            pos,
+            up_to_pos,
+        )?;
         check_range(
             "reciprocal_bits",
             self.reciprocal_bits.into(),
             (*RECIPROCAL_BITS.start()).into(),
             (*RECIPROCAL_BITS.end()).into(),
         )?;
-        check_range("distance_frac_bits", self.distance_frac_bits.into(), 0, pos)
+        check_range_up_to(
+            "distance_frac_bits",
+            self.distance_frac_bits.into(),
+            0,
+            pos,
+            up_to_pos,
+        )
     }
 
     /// An increment stored with `inc_frac_bits` fraction bits, in position units (exact).
@@ -479,7 +508,8 @@ mod tests {
         let err = SkipWidths::new(8, 9, 8, 8).unwrap_err();
         assert_eq!(
             err.to_string(),
-            "skip calculator: `inc_frac_bits` = 9 is outside its allowed range 0..=8"
+            "skip calculator: `inc_frac_bits` = 9 is outside its allowed range 0..=8, \
+             at most `pos_frac_bits`"
         );
         assert_eq!(
             SkipWidths::new(8, 8, 1, 8).unwrap_err().field,

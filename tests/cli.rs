@@ -1515,6 +1515,18 @@ fn messages_name_the_option_at_fault() {
             &["verify-skip", "--max-increment-voxels", "0"],
             "at least 1",
         ),
+        // The increment's bound comes from the position bits, and says so (it read
+        // `0..=0` alone).
+        (
+            &[
+                "verify-skip",
+                "--increment-bits",
+                "24",
+                "--position-bits",
+                "0",
+            ],
+            "0..=0, at most --position-bits",
+        ),
         // The increments are too many because of the increment bits too (it blamed only
         // --max-increment-voxels, which was left at its default).
         (
