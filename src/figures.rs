@@ -378,8 +378,35 @@ fn fmt_degrees(d: f64) -> String {
     text.trim_end_matches('0').trim_end_matches('.').to_string()
 }
 
-/// Writes every chart the results support into `out`; returns how many.
-pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
+/// The kinds of chart `write_all` draws; `vizsim plot --only` picks some.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ChartKind {
+    /// `MODEL-per-frame-DATASET-TF`: cycles (or steps) per frame, one line per mode.
+    PerFrame,
+    /// `MODEL-fps-by-mode-DATASET`: every mode's frame rate side by side, the fastest marked.
+    ByMode,
+    /// `MODEL-fps-vs-subcube-DATASET`: frame rate against the sub-cube size.
+    VsSubcube,
+    /// `MODEL-METRIC-vs-FIELD-DATASET`: frame rate (and PSNR) against each swept field.
+    VsField,
+    /// `skippable-vs-subcube`: the share of empty sub-cubes against their size.
+    Skippable,
+}
+
+impl ChartKind {
+    pub const ALL: [ChartKind; 5] = [
+        ChartKind::PerFrame,
+        ChartKind::ByMode,
+        ChartKind::VsSubcube,
+        ChartKind::VsField,
+        ChartKind::Skippable,
+    ];
+}
+
+/// Writes every chart of the given kinds that the results support into `out`; returns how
+/// many.
+pub fn write_all(lines: &[Value], out: &Path, kinds: &[ChartKind]) -> Result<usize> {
+    let wanted = |kind: ChartKind| kinds.contains(&kind);
     let mut written = 0;
     // Two datasets whose names make the same file name (`a/v.raw`, `a-v.raw`) get a numbered
     // second file rather than one chart overwriting the other.
@@ -423,7 +450,7 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
                 .collect();
             let label = of.first().map(|l| text(l, "dataset")).unwrap_or_default();
             // 1. Per frame, one line per mode (with several frames).
-            for tf in &tfs {
+            for tf in tfs.iter().filter(|_| wanted(ChartKind::PerFrame)) {
                 let these: Vec<&Value> = of
                     .iter()
                     .copied()
@@ -471,7 +498,7 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
             let frames: Vec<&Value> = of
                 .iter()
                 .copied()
-                .filter(|l| l.get("time_step").is_none())
+                .filter(|l| wanted(ChartKind::ByMode) && l.get("time_step").is_none())
                 .collect();
             let (split, _) = split_fields(&frames, None);
             for facet in facets(&frames, &split) {
@@ -555,7 +582,11 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
             let leaping: Vec<&Value> = of
                 .iter()
                 .copied()
-                .filter(|l| num(l, "subcube").unwrap_or(0.0) > 0.0 && l["ert"] == Value::Bool(true))
+                .filter(|l| {
+                    wanted(ChartKind::VsSubcube)
+                        && num(l, "subcube").unwrap_or(0.0) > 0.0
+                        && l["ert"] == Value::Bool(true)
+                })
                 .collect();
             let (split, _) = split_fields(&leaping, None);
             for facet in facets(&leaping, &split) {
@@ -627,7 +658,10 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
             //    evenly spaced). Fields that advance together (a `zip`) make one chart, against
             //    the first of them.
             let mut charted = BTreeSet::new();
-            for axis in swept_axes(&of) {
+            for axis in swept_axes(&of)
+                .into_iter()
+                .filter(|_| wanted(ChartKind::VsField))
+            {
                 let values = axis_values(&of, &axis);
                 if values.len() < 2 || charted.contains(&axis) {
                     continue;
@@ -743,7 +777,9 @@ pub fn write_all(lines: &[Value], out: &Path) -> Result<usize> {
         .iter()
         .copied()
         .filter(|l| {
-            l.get("skippable_subcubes_percent").is_some() && l["hierarchy"] != Value::Bool(true)
+            wanted(ChartKind::Skippable)
+                && l.get("skippable_subcubes_percent").is_some()
+                && l["hierarchy"] != Value::Bool(true)
         })
         .collect();
     let map_fields: Vec<String> = swept_axes(&maps)

@@ -6,6 +6,7 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 use serde_json::{json, Value};
+use vizsim::figures::ChartKind;
 use vizsim::plot::{contact_sheet, label_strip_height, LineChart, Series, SHEET_STRIP_BACKGROUND};
 use vizsim::render::Frame;
 
@@ -80,7 +81,7 @@ fn svg(dir: &Path, stem: &str) -> String {
 fn a_swept_field_splits_the_charts_one_per_value() {
     let dir = scratch("facets");
     let lines = rays_sweep(&[4, 8]);
-    let written = vizsim::figures::write_all(&lines, &dir).unwrap();
+    let written = vizsim::figures::write_all(&lines, &dir, &ChartKind::ALL).unwrap();
     let names = charts(&dir);
     let stems: BTreeSet<&str> = names
         .iter()
@@ -144,6 +145,38 @@ fn a_swept_field_splits_the_charts_one_per_value() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `plot --only` draws the kinds asked for and no other: each kind alone gives exactly its own
+/// charts of the full set, and together they give the full set.
+#[test]
+fn only_the_kinds_asked_for_are_drawn() {
+    let lines = rays_sweep(&[4, 8]);
+    let all = scratch("kinds-all");
+    vizsim::figures::write_all(&lines, &all, &ChartKind::ALL).unwrap();
+    let every = charts(&all);
+    let prefix = |kind: ChartKind| match kind {
+        ChartKind::PerFrame => "cycle-per-frame-",
+        ChartKind::ByMode => "cycle-fps-by-mode-",
+        ChartKind::VsSubcube => "cycle-fps-vs-subcube-",
+        ChartKind::VsField => "cycle-fps-vs-ray_queue.rays-",
+        ChartKind::Skippable => "skippable-vs-subcube",
+    };
+    let mut union = BTreeSet::new();
+    for kind in ChartKind::ALL {
+        let dir = scratch(&format!("kinds-{kind:?}"));
+        let written = vizsim::figures::write_all(&lines, &dir, &[kind]).unwrap();
+        let names = charts(&dir);
+        let expected: BTreeSet<String> = every
+            .iter()
+            .filter(|n| n.starts_with(prefix(kind)))
+            .cloned()
+            .collect();
+        assert!(written > 0, "{kind:?}: nothing drawn");
+        assert_eq!(names, expected, "{kind:?}");
+        union.extend(names);
+    }
+    assert_eq!(union, every);
+}
+
 #[test]
 fn no_chart_averages_two_values_of_a_swept_field() {
     // With the rays at 4 and 8, every frame rate drawn is one of the runs' (or the mean of two
@@ -151,7 +184,7 @@ fn no_chart_averages_two_values_of_a_swept_field() {
     // rays=4 chart stays below the smallest rate at rays=8.
     let dir = scratch("no-mixing");
     let lines = rays_sweep(&[4, 8]);
-    vizsim::figures::write_all(&lines, &dir).unwrap();
+    vizsim::figures::write_all(&lines, &dir, &ChartKind::ALL).unwrap();
     let text = svg(
         &dir,
         "cycle-fps-vs-subcube-phantom-sphere-64-ray_queue.rays=4",
@@ -168,7 +201,7 @@ fn no_chart_averages_two_values_of_a_swept_field() {
     );
     // Three values split into three charts each.
     let three = scratch("three-values");
-    vizsim::figures::write_all(&rays_sweep(&[4, 8, 16]), &three).unwrap();
+    vizsim::figures::write_all(&rays_sweep(&[4, 8, 16]), &three, &ChartKind::ALL).unwrap();
     let per_frame: Vec<String> = charts(&three)
         .into_iter()
         .filter(|n| n.starts_with("cycle-per-frame") && n.ends_with(".png"))
@@ -195,7 +228,7 @@ fn a_field_that_changes_the_map_splits_the_skippable_chart() {
             }
         }
     }
-    vizsim::figures::write_all(&lines, &dir).unwrap();
+    vizsim::figures::write_all(&lines, &dir, &ChartKind::ALL).unwrap();
     let names = charts(&dir);
     assert!(
         names.contains("skippable-vs-subcube-occupancy.dilation=0.png"),
@@ -226,7 +259,7 @@ fn fields_that_advance_together_are_named_not_split() {
             ));
         }
     }
-    vizsim::figures::write_all(&lines, &dir).unwrap();
+    vizsim::figures::write_all(&lines, &dir, &ChartKind::ALL).unwrap();
     let names = charts(&dir);
     assert!(
         names.contains("cycle-fps-vs-sdram.t_rcd-phantom-sphere-64.png"),
@@ -263,7 +296,7 @@ fn a_text_valued_field_is_a_category_axis() {
             lines.push(line("ert+leap8", frame, axes, fps, 40.0));
         }
     }
-    vizsim::figures::write_all(&lines, &dir).unwrap();
+    vizsim::figures::write_all(&lines, &dir, &ChartKind::ALL).unwrap();
     let text = svg(&dir, "cycle-fps-vs-skip.policy-phantom-sphere-64");
     assert!(text.contains("leap-only") && text.contains("sample-then-leap"));
     let _ = std::fs::remove_dir_all(&dir);
@@ -288,7 +321,7 @@ fn what_a_mode_adds_to_its_map_is_a_series_of_its_own() {
     {
         lines.push(line(mode, 0, json!({}), 100.0 + m as f64, 40.0));
     }
-    vizsim::figures::write_all(&lines, &dir).unwrap();
+    vizsim::figures::write_all(&lines, &dir, &ChartKind::ALL).unwrap();
     let text = svg(&dir, "cycle-fps-vs-subcube-phantom-sphere-64");
     let labels: BTreeSet<&str> = text.lines().map(str::trim).collect();
     for name in ["class", "class + bricks16", "class + iso4"] {
@@ -322,7 +355,7 @@ fn every_mode_side_by_side_with_the_fastest_marked() {
             lines.push(l);
         }
     }
-    vizsim::figures::write_all(&lines, &dir).unwrap();
+    vizsim::figures::write_all(&lines, &dir, &ChartKind::ALL).unwrap();
     let text = svg(&dir, "cycle-fps-by-mode-phantom-sphere-64");
     // Each text element's height on the canvas and its words.
     let placed: Vec<(f64, String)> = text
@@ -372,7 +405,12 @@ fn every_mode_side_by_side_with_the_fastest_marked() {
     );
     // One mode: nothing to compare.
     let one = scratch("by-mode-one");
-    vizsim::figures::write_all(&[line("ert+leap8", 0, json!({}), 300.0, 40.0)], &one).unwrap();
+    vizsim::figures::write_all(
+        &[line("ert+leap8", 0, json!({}), 300.0, 40.0)],
+        &one,
+        &ChartKind::ALL,
+    )
+    .unwrap();
     assert!(
         !charts(&one).iter().any(|n| n.contains("by-mode")),
         "{:?}",
@@ -404,7 +442,7 @@ fn a_series_of_one_point_is_drawn() {
     assert!(text.contains("<circle"), "{text}");
     // The hierarchy at one size, among results: still charted.
     let results = scratch("one-point-results");
-    vizsim::figures::write_all(&rays_sweep(&[4]), &results).unwrap();
+    vizsim::figures::write_all(&rays_sweep(&[4]), &results, &ChartKind::ALL).unwrap();
     let text = svg(&results, "cycle-fps-vs-subcube-phantom-sphere-64");
     assert!(text.contains("class + hierarchy"), "{text}");
     let _ = std::fs::remove_dir_all(&dir);
@@ -491,7 +529,7 @@ fn charts_refuse_to_average_over_image_sizes_or_sampling() {
         other["key"] = json!("other");
         lines.push(other);
         let dir = scratch(&format!("mixed-{field}"));
-        let err = vizsim::figures::write_all(&lines, &dir)
+        let err = vizsim::figures::write_all(&lines, &dir, &ChartKind::ALL)
             .unwrap_err()
             .to_string();
         assert!(
@@ -504,7 +542,7 @@ fn charts_refuse_to_average_over_image_sizes_or_sampling() {
     for l in &mut lines {
         l["width"] = json!(64);
     }
-    vizsim::figures::write_all(&lines, &scratch("unmixed")).unwrap();
+    vizsim::figures::write_all(&lines, &scratch("unmixed"), &ChartKind::ALL).unwrap();
 }
 
 /// A swept number spanning a decade or more is drawn on a logarithmic x axis, ticked at its
@@ -519,7 +557,7 @@ fn a_swept_field_over_a_decade_has_a_log_axis() {
             lines.push(line("ert", frame, axes, 100.0 + depth as f64, 40.0));
         }
     }
-    vizsim::figures::write_all(&lines, &dir).unwrap();
+    vizsim::figures::write_all(&lines, &dir, &ChartKind::ALL).unwrap();
     let text = svg(
         &dir,
         "cycle-fps-vs-memory.address_fifo_depth-phantom-sphere-64",
@@ -550,7 +588,7 @@ fn a_swept_field_over_a_decade_has_a_log_axis() {
             )
         })
         .collect();
-    vizsim::figures::write_all(&close, &scratch("log-close")).unwrap();
+    vizsim::figures::write_all(&close, &scratch("log-close"), &ChartKind::ALL).unwrap();
 }
 
 /// Chart names are made of `file_safe` pieces: a long dataset name (a volume named by a long
@@ -586,7 +624,7 @@ fn lines_with_the_float_reference_chart_the_psnr_against_each_field() {
             lines.push(l);
         }
     }
-    vizsim::figures::write_all(&lines, &dir).unwrap();
+    vizsim::figures::write_all(&lines, &dir, &ChartKind::ALL).unwrap();
     let stem = "cycle-psnr-vs-interpolation.weight_bits-phantom-sphere-64";
     let text = svg(&dir, stem);
     assert!(
@@ -600,7 +638,7 @@ fn lines_with_the_float_reference_chart_the_psnr_against_each_field() {
     for l in &mut lines {
         l.as_object_mut().unwrap().remove("float_reference");
     }
-    vizsim::figures::write_all(&lines, &plain).unwrap();
+    vizsim::figures::write_all(&lines, &plain, &ChartKind::ALL).unwrap();
     assert!(
         !charts(&plain).iter().any(|c| c.contains("psnr")),
         "{:?}",

@@ -1812,7 +1812,8 @@ fn charts_of_datasets_with_one_file_name_are_all_kept() {
             })
         })
         .collect();
-    let written = vizsim::figures::write_all(&lines, &dir).unwrap();
+    let written =
+        vizsim::figures::write_all(&lines, &dir, &vizsim::figures::ChartKind::ALL).unwrap();
     let mut charts: Vec<String> = std::fs::read_dir(&dir)
         .unwrap()
         .flatten()

@@ -379,7 +379,8 @@ fn quick_experiment(data_dir: Option<&Path>, demo_out: &Path, out: &Path) -> Res
         None,
     )?;
     let lines = results.read()?;
-    let charts = vizsim::figures::write_all(&lines, &out.join("plots"))?;
+    let charts =
+        vizsim::figures::write_all(&lines, &out.join("plots"), &vizsim::figures::ChartKind::ALL)?;
     println!(
         "{} -> {}",
         vizsim::text::count(charts, "chart", "charts"),

@@ -57,6 +57,9 @@ pub struct PlotArgs {
     /// Output folder (default DIR/plots).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Only these kinds of chart, comma-separated (default: every kind the results support).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    only: Vec<vizsim::figures::ChartKind>,
 }
 
 pub fn plot(args: PlotArgs) -> Result<()> {
@@ -68,11 +71,18 @@ pub fn plot(args: PlotArgs) -> Result<()> {
         "{}: no results",
         args.results.dir.display()
     );
+    let kinds = if args.only.is_empty() {
+        &vizsim::figures::ChartKind::ALL[..]
+    } else {
+        &args.only[..]
+    };
     // Every chart or none: a failure halfway leaves no partial set that looks complete.
     let written = vizsim::output::removing_new_folder_on_error(&out, || {
-        vizsim::output::all_or_none(|| vizsim::figures::write_all(&lines, &out))
+        vizsim::output::all_or_none(|| vizsim::figures::write_all(&lines, &out, kinds))
     })?;
-    if written == 0 {
+    if written == 0 && !args.only.is_empty() {
+        vizsim::note!("no chart of the kinds --only names to draw; nothing written");
+    } else if written == 0 {
         // Said, not "0 charts -> DIR" for a folder that was never made.
         vizsim::note!(
             "no chart to draw: a per-frame chart needs two frames or more, the frame rate by \
