@@ -233,7 +233,7 @@ struct Point {
 
 impl Point {
     fn mean(&self) -> f64 {
-        self.values.iter().sum::<f64>() / self.values.len() as f64
+        crate::tables::mean(&self.values)
     }
 }
 

@@ -412,6 +412,15 @@ pub fn mode_label(mode: &str) -> String {
     }
 }
 
+/// The mean of a cell's or a chart point's values, the same whatever their order: summed in
+/// ascending order, so modes whose frames took the same time show the same rate to the last
+/// digit and tie, where a sum in run order could differ in the last bit.
+pub fn mean(values: &[f64]) -> f64 {
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    sorted.iter().sum::<f64>() / sorted.len() as f64
+}
+
 /// Where a value of `field` goes among its row or column headers (modes: `none`, `ERT`, maps by
 /// size, distance volumes, leap values, each with its variants after it).
 pub fn sort_key(field: &str, text: &str) -> (i64, String) {
@@ -620,13 +629,13 @@ pub fn build(
         }
         tied.push(f.clone());
     }
-    // Means are sums over lines; sum them in key order, not in the order the runs finished, so
-    // that the same results give the same digits however the sweep was scheduled.
+    // Lines in key order, not in the order the runs finished, so that the same results give
+    // the same tables however the sweep was scheduled (errors name the same runs).
     let mut lines = lines.to_vec();
     lines.sort_by_key(|l| field_text(l, "key").unwrap_or_default());
     type Key = Vec<(i64, String)>;
-    /// Sum, count, whether any line ran with the SRAM raised, whether any line is sampled.
-    type Cell = (f64, u32, bool, bool);
+    /// Values, whether any line ran with the SRAM raised, whether any line is sampled.
+    type Cell = (Vec<f64>, bool, bool);
     let mut cells: BTreeMap<(Key, (i64, String)), Cell> = BTreeMap::new();
     // A cell is a mean over frames: two results of one frame (view and time step) in a cell
     // differ in something that is neither a row nor the column (a base configuration or image
@@ -687,10 +696,9 @@ pub fn build(
             .entry((row.clone(), column.clone()))
             .or_default()
             .insert(view);
-        let cell = cells.entry((row, column)).or_insert((0.0, 0, false, false));
-        cell.0 += value;
-        cell.1 += 1;
-        cell.2 |= raised;
+        let cell = cells.entry((row, column)).or_default();
+        cell.0.push(value);
+        cell.1 |= raised;
         // Only timing is estimated: steps, samples and structure figures stay exact.
         let counted = matches!(
             metric,
@@ -701,7 +709,7 @@ pub fn build(
                 | Metric::OnChipBits
                 | Metric::SdramRows
         );
-        cell.3 |= !counted && is_estimate(line);
+        cell.2 |= !counted && is_estimate(line);
     }
     let row_keys: Vec<Key> = cells
         .keys()
@@ -715,7 +723,7 @@ pub fn build(
         .collect::<BTreeSet<_>>()
         .into_iter()
         .collect();
-    let frames_per_cell: BTreeSet<u32> = cells.values().map(|&(_, n, _, _)| n).collect();
+    let frames_per_cell: BTreeSet<u32> = cells.values().map(|c| c.0.len() as u32).collect();
     // A sequence's line is one time step of one view: its cells are means over time steps,
     // and over views when a cell holds several (the frame neither a row nor the column).
     let sequence = lines.iter().any(|l| l.get("time_step").is_some());
@@ -752,18 +760,18 @@ pub fn build(
                 .map(|(ci, c)| {
                     cells
                         .get(&(r.clone(), c.clone()))
-                        .map(|&(sum, n, raised, estimate)| {
-                            if raised {
+                        .map(|(values, raised, estimate)| {
+                            if *raised {
                                 raised_sram.insert((ri, ci));
                             }
-                            if estimate {
+                            if *estimate {
                                 sampled.insert((ri, ci));
                             }
                             let there = lines_per_cell[&(r.clone(), c.clone())];
                             if there < most_lines {
                                 fewer_frames.insert((ri, ci), there);
                             }
-                            sum / n as f64
+                            mean(values)
                         })
                 })
                 .collect();
@@ -1389,6 +1397,40 @@ mod tests {
         assert!(md.contains("| ERT = 8³ (tied) |"), "{md}");
         let md = markdown([130.0, 100.0, 100.0]);
         assert!(md.contains("| none, 1.30× ERT |"), "{md}");
+    }
+
+    /// Two modes whose frames ran at the same rates have the same mean to the last digit, and
+    /// tie, whatever order their lines come in (summed in run order, 0.1 + 0.2 + 0.3 and
+    /// 0.3 + 0.2 + 0.1 differ in the last bit, and one mode was named fastest, 1.00× the other).
+    #[test]
+    fn equal_frames_give_equal_means_in_any_order() {
+        let with_fps = |mode: &str, frame: u64, fps: f64| {
+            let mut l = line(mode, frame, 1000, false);
+            l["fps"] = fps.into();
+            l
+        };
+        let rates = [0.1, 0.2, 0.3];
+        let mut lines = Vec::new();
+        for (frame, &fps) in rates.iter().enumerate() {
+            lines.push(with_fps("ert", frame as u64, fps));
+            lines.push(with_fps("ert+leap8", frame as u64, rates[2 - frame]));
+        }
+        assert_ne!(
+            (0.1 + 0.2) + 0.3,
+            (0.3 + 0.2) + 0.1,
+            "the order matters here"
+        );
+        let refs: Vec<&serde_json::Value> = lines.iter().collect();
+        let rows = ["dataset".to_string(), "tf".to_string()];
+        let table = build(&refs, Metric::Fps, &rows, "mode", "t").unwrap();
+        let values = &table.rows[0].1;
+        assert_eq!(values[0], values[1], "{values:?}");
+        assert!(
+            table.markdown().contains("| ERT = 8³ (tied) |"),
+            "{}",
+            table.markdown()
+        );
+        assert_eq!(super::mean(&[0.3, 0.1, 0.2]), super::mean(&[0.1, 0.2, 0.3]));
     }
 
     /// The storage metrics add what each run stores: the map's SRAM, the brick flags and
