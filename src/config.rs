@@ -1357,19 +1357,6 @@ pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
         .ok()
         .and_then(|mut t| t.remove("v"))
         .unwrap_or_else(|| toml::Value::String(raw.to_string()));
-    // A whole number TOML cannot hold would otherwise reach the field as a string, and be
-    // reported as the wrong type rather than as too large.
-    let digits = raw.strip_prefix(['+', '-']).unwrap_or(raw);
-    if value.is_str()
-        && !digits.is_empty()
-        && digits.chars().all(|c| c.is_ascii_digit() || c == '_')
-    {
-        return Err(Error::config(
-            "--set",
-            path,
-            format!("{raw} is out of range: whole numbers are read as 64-bit integers"),
-        ));
-    }
     let keys: Vec<&str> = path.split('.').collect();
     let (last, parents) = keys.split_last().ok_or_else(|| bad("empty field path"))?;
     let mut current = table;
@@ -1397,6 +1384,16 @@ pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
             .expect("checked above: a section");
     }
     match current.get_mut(*last) {
+        // A number TOML cannot hold would otherwise reach the field as a string, and be
+        // reported as the wrong type rather than as too large.
+        Some(_) if value.is_str() && too_large_for_toml(raw) => Err(Error::config(
+            "--set",
+            path,
+            format!(
+                "{raw} is too large a number: TOML reads whole numbers as 64-bit integers and \
+                 others as 64-bit floats"
+            ),
+        )),
         Some(slot) if !slot.is_table() => {
             *slot = value;
             Ok(())
@@ -1411,6 +1408,42 @@ pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
             ),
         )),
     }
+}
+
+/// Whether `raw` is a number as TOML writes it (an integer, decimal with an optional sign or
+/// `0x`/`0o`/`0b`, or a float) whose value TOML cannot hold; other text TOML refuses (`007`,
+/// `1__0`, a file name) is not.
+fn too_large_for_toml(raw: &str) -> bool {
+    // Digits with single underscores between them, as TOML allows.
+    let digits = |s: &str, digit: fn(char) -> bool| {
+        !s.is_empty()
+            && s.split('_')
+                .all(|group| !group.is_empty() && group.chars().all(digit))
+    };
+    let unsigned = raw.strip_prefix(['+', '-']).unwrap_or(raw);
+    let prefixed = [
+        ("0x", (|c: char| c.is_ascii_hexdigit()) as fn(char) -> bool),
+        ("0o", |c: char| ('0'..='7').contains(&c)),
+        ("0b", |c: char| c == '0' || c == '1'),
+    ];
+    for (prefix, digit) in prefixed {
+        if let Some(rest) = raw.strip_prefix(prefix) {
+            return digits(rest, digit);
+        }
+    }
+    let decimal = |s: &str| digits(s, |c| c.is_ascii_digit()) && (s == "0" || !s.starts_with('0'));
+    if decimal(unsigned) {
+        return true;
+    }
+    // A float: an integer part, then a fraction, an exponent or both; too large if it
+    // overflows to infinity.
+    let starts_with_digit = unsigned.starts_with(|c: char| c.is_ascii_digit());
+    starts_with_digit
+        && unsigned.contains(['.', 'e', 'E'])
+        && raw
+            .replace('_', "")
+            .parse::<f64>()
+            .is_ok_and(|v| v.is_infinite())
 }
 
 #[cfg(test)]
@@ -1458,21 +1491,47 @@ mod tests {
         fields
     }
 
-    /// A whole number too large for TOML is named as out of range, not as "invalid type:
-    /// string"; numbers that fit, words and quoted digits are still read as before.
+    /// A number too large for TOML is named as too large, not as "invalid type: string";
+    /// numbers that fit, words, quoted digits and text TOML refuses for other reasons (a
+    /// leading zero: a file named `007`) are read as before, and a wrong field path is named
+    /// first.
     #[test]
-    fn an_override_too_large_for_toml_is_out_of_range() {
+    fn an_override_too_large_for_toml_is_named_so() {
         let mut table: toml::Table = DEFAULT_TOML.parse().expect("the embedded default");
         for raw in [
             "99999999999999999999",
             "-99999999999999999999",
-            "10_000_000_000_000_000_000",
+            "+10_000_000_000_000_000_000",
+            "0xFFFFFFFFFFFFFFFFFF",
+            "0b11111111111111111111111111111111111111111111111111111111111111111",
+            "1e999",
+            "-1.5e999",
         ] {
             let e = apply_override(&mut table, &format!("sdram.cl={raw}"))
                 .expect_err(raw)
                 .to_string();
-            assert!(e.contains("sdram.cl") && e.contains("out of range"), "{e}");
+            assert!(
+                e.contains("sdram.cl") && e.contains("too large a number"),
+                "{e}"
+            );
         }
+        for raw in [
+            "007",
+            "1__0",
+            "_1",
+            "1_",
+            "00000000000000000000000",
+            "0x",
+            "1e5x",
+        ] {
+            assert!(!too_large_for_toml(raw), "{raw}");
+        }
+        apply_override(&mut table, "geometry.file=007").expect("a file name of digits");
+        assert_eq!(table["geometry"]["file"].as_str(), Some("007"));
+        let e = apply_override(&mut table, "sdram.nosuch=99999999999999999999")
+            .expect_err("no such field")
+            .to_string();
+        assert!(e.contains("unknown field `nosuch`"), "{e}");
         apply_override(&mut table, "sdram.cl=3").expect("a number that fits");
         assert_eq!(table["sdram"]["cl"].as_integer(), Some(3));
         apply_override(&mut table, "memory.row_policy=close").expect("a bare word");
