@@ -99,9 +99,19 @@ pub fn run(args: VerifySkipArgs) -> Result<()> {
         args.distance_bits.unwrap_or(position_bits),
     )
     .map_err(|e| {
-        // Name the options, not the calculator's fields they set.
+        // Name the options, not the calculator's fields they set; a bound set by the
+        // position bits names them as given, or as defaulted.
+        let position_option = if args.position_bits.is_some() {
+            "--position-bits".to_string()
+        } else {
+            format!("--position-bits (default: --increment-bits, {position_bits})")
+        };
         let e = e
             .to_string()
+            .replace(
+                ", at most `pos_frac_bits`",
+                &format!(", at most {position_option}"),
+            )
             .replace(
                 "`pos_frac_bits`",
                 "--position-bits (default: --increment-bits)",
