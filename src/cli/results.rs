@@ -80,13 +80,17 @@ pub fn plot(args: PlotArgs) -> Result<()> {
     let written = vizsim::output::removing_new_folder_on_error(&out, || {
         vizsim::output::all_or_none(|| vizsim::figures::write_all(&lines, &out, kinds))
     })?;
-    if written == 0 && !args.only.is_empty() {
-        vizsim::note!("no chart of the kinds --only names to draw; nothing written");
-    } else if written == 0 {
+    if written == 0 {
         // Said, not "0 charts -> DIR" for a folder that was never made.
+        let which = if args.only.is_empty() {
+            ""
+        } else {
+            " of the kinds --only names"
+        };
         vizsim::note!(
-            "no chart to draw: a per-frame chart needs two frames or more, the frame rate by \
-             mode two modes, the others leaping modes or a swept field; nothing written"
+            "no chart{which} to draw: a per-frame chart needs two frames or more, the frame \
+             rate by mode two modes, the sub-cube and skippable charts leaping modes, a \
+             vs-field chart a field swept over two values or more; nothing written"
         );
     } else {
         println!(
