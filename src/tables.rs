@@ -898,7 +898,7 @@ impl Table {
     }
 
     /// A row's fastest column and its lead over the next ("8³+h, 1.21× 8³"); columns that tie
-    /// at the top are named together. A cell's marks (the SRAM raised) stay on its label.
+    /// at the top, or for second place, are named together. A cell's marks (the SRAM raised) stay on its label.
     fn fastest_text(&self, row: usize) -> String {
         let values = &self.rows[row].1;
         let header = self.header();
@@ -930,9 +930,15 @@ impl Table {
         if tied {
             text += " (tied)";
         }
-        if let Some(&(ci, next)) = ranked.get(top.len()).filter(|_| !tied) {
+        // The runner-up, with the columns that tie it.
+        if let Some(&(_, next)) = ranked.get(top.len()).filter(|_| !tied) {
             if next > 0.0 {
-                text += &format!(", {:.2}× {}", best / next, label(ci));
+                let runners_up: Vec<String> = ranked[top.len()..]
+                    .iter()
+                    .take_while(|(_, v)| *v == next)
+                    .map(|&(ci, _)| label(ci))
+                    .collect();
+                text += &format!(", {:.2}× {}", best / next, runners_up.join(" = "));
             }
         }
         text
@@ -1396,6 +1402,8 @@ mod tests {
         let md = markdown([80.0, 100.0, 100.0]);
         assert!(md.contains("| ERT = 8³ (tied) |"), "{md}");
         let md = markdown([130.0, 100.0, 100.0]);
+        assert!(md.contains("| none, 1.30× ERT = 8³ |"), "{md}");
+        let md = markdown([130.0, 100.0, 90.0]);
         assert!(md.contains("| none, 1.30× ERT |"), "{md}");
     }
 
